@@ -1,0 +1,145 @@
+"""State histories: what an estimator knew over time, and what was true.
+
+``StateHistory`` holds named blocks from a fixed vocabulary (``pose``, ``velocity``,
+``gyro_bias``, ``accel_bias``, ``landmarks``). NEES of any block is computed the same way
+for every estimator (``workbench.metrics.consistency``), so the blocks carry the frame they
+are expressed in: a robocentric filter reports body-frame velocity and landmarks, a
+world-centric one world-frame quantities, and the ground truth knows both.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from datasets.trajectory import Trajectory
+
+
+class Frame(enum.StrEnum):
+    """Frame a vector block is expressed in."""
+
+    WORLD = "world"
+    BODY = "body"
+
+
+class BlockName(enum.StrEnum):
+    """The fixed vocabulary of vector state blocks (pose and landmarks have their own types)."""
+
+    VELOCITY = "velocity"
+    GYRO_BIAS = "gyro_bias"
+    ACCEL_BIAS = "accel_bias"
+
+
+@dataclass(frozen=True)
+class StateBlock:
+    """One vector state over time.
+
+    Attributes:
+        t: times [s], shape (N,).
+        values: shape (N, k).
+        covariances: shape (N, k, k) or None.
+        frame: frame of the vector (biases are always body/sensor frame).
+    """
+
+    t: np.ndarray
+    values: np.ndarray
+    covariances: np.ndarray | None = None
+    frame: Frame = Frame.BODY
+
+    def __post_init__(self) -> None:
+        if self.values.ndim != 2 or self.values.shape[0] != len(self.t):
+            raise ValueError(f"StateBlock values must be (N, k) with N={len(self.t)}, got {self.values.shape}")
+        if self.covariances is not None:
+            k = self.values.shape[1]
+            if self.covariances.shape != (len(self.t), k, k):
+                raise ValueError(f"StateBlock covariances must be {(len(self.t), k, k)}, got {self.covariances.shape}")
+
+
+@dataclass(frozen=True)
+class LandmarkMap:
+    """A set of point landmarks with ids.
+
+    Attributes:
+        ids: landmark ids, shape (k,) int. For an estimator these are its own map ids; for
+            ground truth the true ids.
+        positions: shape (k, d) [m].
+        covariances: per-landmark marginal covariances, shape (k, d, d), or None.
+        frame: world (a world-centric map) or body (a robocentric map at time ``t``).
+        t: time of the snapshot [s] (None for a static world map).
+    """
+
+    ids: np.ndarray
+    positions: np.ndarray
+    covariances: np.ndarray | None = None
+    frame: Frame = Frame.WORLD
+    t: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.positions.ndim != 2 or self.positions.shape[0] != len(self.ids):
+            raise ValueError(f"LandmarkMap positions must be (k, d) with k={len(self.ids)}, got {self.positions.shape}")
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    @property
+    def dimension(self) -> int:
+        return int(self.positions.shape[1])
+
+    @staticmethod
+    def empty(dimension: int, frame: Frame = Frame.WORLD, t: float | None = None) -> "LandmarkMap":
+        return LandmarkMap(
+            ids=np.zeros(0, dtype=int),
+            positions=np.zeros((0, dimension)),
+            covariances=np.zeros((0, dimension, dimension)),
+            frame=frame,
+            t=t,
+        )
+
+
+@dataclass(frozen=True)
+class StateHistory:
+    """Named state blocks over time (DESIGN.md: ``StateHistory``).
+
+    Attributes:
+        pose: the vehicle trajectory (with covariances for an estimate), or None for a
+            robocentric estimator that has no world pose.
+        blocks: vector blocks keyed by ``BlockName`` (velocity, gyro_bias, accel_bias).
+        landmarks: landmark map snapshots over time (may be subsampled), oldest first.
+    """
+
+    pose: Trajectory | None = None
+    blocks: dict[BlockName, StateBlock] = field(default_factory=dict)
+    landmarks: tuple[LandmarkMap, ...] = ()
+
+    def block(self, name: BlockName | str) -> StateBlock | None:
+        """The block called ``name``, or None when this history does not have it."""
+        return self.blocks.get(BlockName(name))
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """What the source knows to be true; any part may be missing (None / empty).
+
+    Attributes:
+        history: true states (no covariances). Velocity is kept in both frames where known:
+            ``blocks[VELOCITY]`` is world-frame; ``body_velocity`` is body-frame.
+        landmarks: the true world map (ids are true ids), or None.
+        body_velocity: body-frame velocity, or None.
+        scan_ids: true landmark ids of every landmark scan, as ``(t, ids[k])`` pairs in
+            stream order, also when the ids are withheld from the measurements; used only
+            to score data association.
+        held_out_positions: positions withheld from the estimators and kept for evaluation
+            (e.g. held-out GPS fixes) as ``(t[M], positions[M, d])``, or None.
+    """
+
+    history: StateHistory
+    landmarks: LandmarkMap | None = None
+    body_velocity: StateBlock | None = None
+    scan_ids: tuple[tuple[float, np.ndarray], ...] = ()
+    held_out_positions: tuple[np.ndarray, np.ndarray] | None = None
+
+    @property
+    def pose(self) -> Trajectory | None:
+        return self.history.pose

@@ -1,0 +1,140 @@
+"""Trajectory file formats: TUM and KITTI (read and write), and atomic file writes.
+
+TUM: one pose a line, ``t x y z qx qy qz qw`` (note: TUM orders the quaternion x, y, z, w;
+our interface order is w, x, y, z and the conversion happens here only). Planar
+trajectories are written with z = 0 and a rotation about z, so evo reads them.
+KITTI: one pose a line, the 12 entries of the top 3x4 of the homogeneous matrix, no time.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from datasets.errors import InputError
+from datasets.trajectory import Trajectory, trajectory_from_homogeneous
+
+
+def write_atomic(path: str | Path, data: bytes | str) -> Path:
+    """Write ``data`` to ``path`` through a temp file in the same folder and a rename, so a
+    killed process never leaves a half-written file that looks whole."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = data.encode() if isinstance(data, str) else data
+    handle, temp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(payload)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(temp_name, path)
+    except BaseException:
+        Path(temp_name).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _as_spatial(trajectory: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 3) and quaternions (N, 4) wxyz of any trajectory (planar: z=0, yaw)."""
+    if trajectory.dimension == 3:
+        return trajectory.positions, trajectory.rotations
+    half = 0.5 * trajectory.rotations
+    quats = np.stack([np.cos(half), np.zeros_like(half), np.zeros_like(half), np.sin(half)], axis=1)
+    positions = np.column_stack([trajectory.positions, np.zeros(len(trajectory))])
+    return positions, quats
+
+
+def format_tum(trajectory: Trajectory) -> str:
+    """TUM text of a trajectory (full float precision, deterministic)."""
+    positions, quats = _as_spatial(trajectory)
+    table = np.column_stack([trajectory.t, positions, quats[:, [1, 2, 3, 0]]])
+    buffer = io.StringIO()
+    np.savetxt(buffer, table, fmt="%.9f", delimiter=" ")
+    return buffer.getvalue()
+
+
+def write_tum(path: str | Path, trajectory: Trajectory) -> Path:
+    """Write a TUM file atomically."""
+    return write_atomic(path, "# timestamp tx ty tz qx qy qz qw\n" + format_tum(trajectory))
+
+
+def read_tum(path: str | Path) -> Trajectory:
+    """Read a TUM file into a 3-D ``Trajectory``.
+
+    Raises ``InputError`` naming the file and line for a missing file, a malformed line,
+    non-finite values, or a file without poses.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    rows = []
+    for line_number, line in enumerate(path.read_text().splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        fields = stripped.replace(",", " ").split()
+        if len(fields) != 8:
+            raise InputError(f"{path}:{line_number}: expected 8 numbers (t x y z qx qy qz qw), got {len(fields)}")
+        try:
+            values = [float(field) for field in fields]
+        except ValueError as error:
+            raise InputError(f"{path}:{line_number}: not a number ({error})") from None
+        if not np.all(np.isfinite(values)):
+            raise InputError(f"{path}:{line_number}: non-finite value")
+        rows.append(values)
+    if not rows:
+        raise InputError(f"{path}: no poses in file")
+    table = np.array(rows)
+    quats = table[:, [7, 4, 5, 6]]
+    norms = np.linalg.norm(quats, axis=1)
+    if np.any(norms < 1e-9):
+        bad = int(np.argmin(norms))
+        raise InputError(f"{path}: zero quaternion at pose {bad} (t={table[bad, 0]})")
+    return Trajectory(t=table[:, 0], positions=table[:, 1:4], rotations=quats / norms[:, None])
+
+
+def write_kitti(path: str | Path, trajectory: Trajectory) -> Path:
+    """Write KITTI poses (3x4 row-major a line, no time) atomically; planar poses as 3-D."""
+    positions, quats = _as_spatial(trajectory)
+    spatial = Trajectory(trajectory.t, positions, quats)
+    rows = spatial.homogeneous()[:, :3, :].reshape(len(spatial), 12)
+    buffer = io.StringIO()
+    np.savetxt(buffer, rows, fmt="%.9e", delimiter=" ")
+    return write_atomic(path, buffer.getvalue())
+
+
+def read_kitti(path: str | Path, t: np.ndarray | None = None) -> Trajectory:
+    """Read KITTI poses; times are ``t`` if given, else the pose index (s)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    rows = []
+    for line_number, line in enumerate(path.read_text().splitlines(), start=1):
+        if not line.strip():
+            continue
+        fields = line.split()
+        if len(fields) != 12:
+            raise InputError(f"{path}:{line_number}: expected 12 numbers (3x4 pose), got {len(fields)}")
+        try:
+            rows.append([float(field) for field in fields])
+        except ValueError as error:
+            raise InputError(f"{path}:{line_number}: not a number ({error})") from None
+    if not rows:
+        raise InputError(f"{path}: no poses in file")
+    poses = np.tile(np.eye(4), (len(rows), 1, 1))
+    poses[:, :3, :] = np.array(rows).reshape(-1, 3, 4)
+    times = np.arange(len(rows), dtype=float) if t is None else np.asarray(t, dtype=float)
+    if len(times) != len(rows):
+        raise InputError(f"{path}: {len(rows)} poses but {len(times)} times")
+    return trajectory_from_homogeneous(times, poses)
+
+
+def save_npz_atomic(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
+    """Save arrays to a compressed ``.npz`` atomically."""
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    return write_atomic(path, buffer.getvalue())

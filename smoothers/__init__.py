@@ -1,0 +1,1 @@
+"""GTSAM factor-graph smoothers."""

@@ -1,0 +1,1 @@
+"""The application: registry, runner, Monte Carlo, metrics, reports, plots, CLI."""
