@@ -1,0 +1,116 @@
+"""The explicit table of datasets and estimators.
+
+Entries name their implementation as ``"module:attribute"`` and are imported on first use,
+so that ``workbench list`` does not pay for importing GTSAM or KISS-ICP. The lower packages
+know nothing of this table (DESIGN.md).
+
+Dataset names: ``PREFIX`` or ``PREFIX:ARGUMENT`` (``sim:aghili-rover``,
+``utias:FOLDER#robot1``, ``bag:PATH``). A dataset loader has the signature
+``load(argument: str | None, seed: int, options: dict[str, str]) -> Sequence`` and rejects
+unknown options with an ``InputError``; it exposes ``describe() -> list[str]`` lines for
+``workbench list --verbose``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from datasets.errors import InputError
+
+
+def _resolve(target: str) -> Any:
+    module_name, _, attribute = target.partition(":")
+    return getattr(importlib.import_module(module_name), attribute)
+
+
+@dataclass(frozen=True)
+class EstimatorEntry:
+    """A registered estimator: name, ``module:Class`` implementing ``datasets.Estimator``."""
+
+    name: str
+    target: str
+    summary: str
+
+    def load(self) -> type:
+        return _resolve(self.target)
+
+
+@dataclass(frozen=True)
+class DatasetEntry:
+    """A registered dataset family: prefix, ``module:function`` loader, and help text.
+
+    ``argument`` says what follows ``PREFIX:`` (None when the name takes no argument).
+    ``examples`` are full dataset names listed by ``workbench list``.
+    """
+
+    prefix: str
+    target: str
+    summary: str
+    argument: str | None = None
+    examples: tuple[str, ...] = ()
+    describe_target: str | None = None
+
+    def loader(self) -> Callable[..., Any]:
+        return _resolve(self.target)
+
+    def describe(self) -> list[str]:
+        return list(_resolve(self.describe_target)()) if self.describe_target else []
+
+
+ESTIMATORS: tuple[EstimatorEntry, ...] = (
+    EstimatorEntry(
+        "dead-reckoning",
+        "filters.dead_reckoning:DeadReckoning",
+        "strap-down IMU / odometry / gyro integration without corrections (the lower bound)",
+    ),
+)
+
+DATASETS: tuple[DatasetEntry, ...] = (
+    DatasetEntry(
+        "sim",
+        "datasets.simulation.scenarios:load_scenario",
+        "seeded simulator with exact ground truth",
+        argument="SCENARIO",
+        examples=("sim:aghili-rover", "sim:guerreiro-loop", "sim:circle", "sim:static"),
+        describe_target="datasets.simulation.scenarios:describe_scenarios",
+    ),
+)
+
+
+def estimator_entry(name: str) -> EstimatorEntry:
+    """The estimator called ``name``; ``InputError`` listing the known ones otherwise."""
+    for entry in ESTIMATORS:
+        if entry.name == name:
+            return entry
+    known = ", ".join(entry.name for entry in ESTIMATORS)
+    raise InputError(f"unknown estimator '{name}' (known: {known})")
+
+
+def split_dataset_name(name: str) -> tuple[str, str | None]:
+    """``'sim:circle'`` -> ``('sim', 'circle')``; ``'victoria-park'`` -> ``('victoria-park', None)``."""
+    prefix, separator, argument = name.partition(":")
+    return prefix, (argument if separator else None)
+
+
+def dataset_entry(name: str) -> DatasetEntry:
+    """The dataset family of ``name``; ``InputError`` listing the known ones otherwise."""
+    prefix, argument = split_dataset_name(name)
+    for entry in DATASETS:
+        if entry.prefix == prefix:
+            if entry.argument is not None and not argument:
+                raise InputError(f"dataset '{name}' needs an argument: {prefix}:{entry.argument}")
+            if entry.argument is None and argument:
+                raise InputError(f"dataset '{prefix}' takes no argument (got '{name}')")
+            return entry
+    known = ", ".join(entry.prefix + (f":{entry.argument}" if entry.argument else "") for entry in DATASETS)
+    raise InputError(f"unknown dataset '{name}' (known: {known})")
+
+
+def load_dataset(name: str, seed: int, options: dict[str, str] | None = None):
+    """Load the ``Sequence`` called ``name`` with ``--data`` options."""
+    entry = dataset_entry(name)
+    _, argument = split_dataset_name(name)
+    return entry.loader()(argument, seed, dict(options or {}))
