@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from datasets.measurements import Measurement, Sensor
-from datasets.state import GroundTruth
+from datasets.state import GroundTruth, LandmarkMap
 
 
 @dataclass(frozen=True)
@@ -76,6 +76,10 @@ class Sequence:
         ground_truth: truth, or None.
         noise: the stated sensor noise.
         initial_state: the start, or None when the source says nothing.
+        known_landmarks: surveyed landmark positions the source offers as known (world
+            frame, true ids), ordered by preference for use as anchors: an estimator
+            configured with N anchors takes the first N (the simulator orders them so that
+            any first three are non-collinear). None when the source has none.
         metadata: source, seed, options (JSON-serialisable).
     """
 
@@ -86,6 +90,7 @@ class Sequence:
     ground_truth: GroundTruth | None = None
     noise: NoiseSpec = field(default_factory=NoiseSpec)
     initial_state: InitialState | None = None
+    known_landmarks: LandmarkMap | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
 
     def measurements(self) -> Iterator[Measurement]:

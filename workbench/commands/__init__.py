@@ -1,0 +1,2 @@
+"""CLI command groups. Each module defines ``register(app: typer.Typer)``; ``workbench.cli``
+lists the modules explicitly."""
