@@ -1,0 +1,209 @@
+"""Dead reckoning: integrate the motion sensors, never correct. The lower bound of every table.
+
+Three inputs, whichever the sequence provides (first match wins):
+- 3-D IMU: strap-down integration (exact rotation increment, trapezoid-free Euler for
+  velocity and position at the IMU rate) from ``sequence.initial_state`` with zero biases;
+  the covariance of the 15-dim error state [dtheta (body, right perturbation), dv (world),
+  dp (world), db_g, db_a] propagated with the first-order model and the sequence's stated
+  IMU noise densities, so NEES of dead reckoning is meaningful too.
+- 2-D odometry: compose relative poses, or integrate (v_forward, omega) as a unicycle.
+- 2-D gyro only: heading from the gyro, the initial body-frame velocity held constant.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from datasets.errors import InputError
+from datasets.estimate import Estimate, EstimateRecorder
+from datasets.measurements import GyroSample, ImuSample, Measurement, Odometry, Sensor
+from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, skew, so3_exp, wrap_angle
+from datasets.sequence import Sequence
+from datasets.state import BlockName, Frame
+
+GRAVITY_M_S2 = np.array([0.0, 0.0, -9.81])
+
+
+class DeadReckoningConfig(BaseModel):
+    """Options of the dead-reckoning integrator."""
+
+    model_config = ConfigDict(extra="forbid")
+    max_gap_s: float = Field(1.0, gt=0, description="a gap between motion samples longer than this is an error")
+    gyro_velocity_sigma_m_s2: float = Field(
+        0.05, ge=0, description="2-D gyro-only: random-walk density of the assumed-constant body velocity [m/s^2/sqrt(Hz)]"
+    )
+
+
+class DeadReckoning:
+    """Strap-down IMU / odometry / gyro integration (no measurement updates)."""
+
+    Config: ClassVar[type[BaseModel]] = DeadReckoningConfig
+    sensor_options: ClassVar[tuple[frozenset[Sensor], ...]] = (
+        frozenset({Sensor.IMU}),
+        frozenset({Sensor.ODOMETRY}),
+        frozenset({Sensor.GYRO}),
+    )
+    dimensions: ClassVar[frozenset[int]] = frozenset({2, 3})
+
+    def __init__(self, config: DeadReckoningConfig, sequence: Sequence) -> None:
+        if sequence.initial_state is None:
+            raise InputError(f"{sequence.name}: dead reckoning needs an initial state, the dataset gives none")
+        self.config = config
+        self.dimension = sequence.dimension
+        self.input = next(sensor for option in self.sensor_options for sensor in option if sensor in sequence.sensors)
+        self.noise = sequence.noise
+        start = sequence.initial_state
+        self.recorder = EstimateRecorder(self.dimension)
+        self.t = float(start.t)
+        self.position = np.array(start.position, dtype=float)
+        velocity = np.zeros(self.dimension) if start.velocity is None else np.array(start.velocity, dtype=float)
+        if self.dimension == 3:
+            self.rotation = matrix_from_quat_wxyz(start.rotation)
+            self.velocity = velocity
+            self.covariance = np.zeros((15, 15))
+            self.covariance[0:3, 0:3] = np.eye(3) * start.rotation_sigma_rad**2
+            self.covariance[3:6, 3:6] = np.eye(3) * start.velocity_sigma_m_s**2
+            self.covariance[6:9, 6:9] = np.eye(3) * start.position_sigma_m**2
+            self.covariance[9:12, 9:12] = np.eye(3) * (self.noise.gyro_bias_sigma_rad_s or 0.0) ** 2
+            self.covariance[12:15, 12:15] = np.eye(3) * (self.noise.accel_bias_sigma_m_s2 or 0.0) ** 2
+        else:
+            self.heading = float(start.rotation)
+            # body-frame velocity held constant in the gyro-only mode
+            self.body_velocity = rot2(self.heading).T @ velocity
+            self.covariance = np.diag([start.position_sigma_m**2] * 2 + [start.rotation_sigma_rad**2])
+            self.body_velocity_variance = start.velocity_sigma_m_s**2
+        self._record()
+
+    # ------------------------------------------------------------------ recording
+    def _record(self) -> None:
+        if self.dimension == 3:
+            to_body = np.eye(6)
+            to_body[3:6, 3:6] = self.rotation.T
+            indices = np.r_[0:3, 6:9]
+            pose_cov = to_body @ self.covariance[np.ix_(indices, indices)] @ to_body.T
+            self.recorder.pose(self.t, self.position, quat_wxyz_from_matrix(self.rotation), pose_cov)
+            self.recorder.block(BlockName.VELOCITY, self.t, self.velocity, self.covariance[3:6, 3:6], Frame.WORLD)
+            self.recorder.block(BlockName.GYRO_BIAS, self.t, np.zeros(3), self.covariance[9:12, 9:12])
+            self.recorder.block(BlockName.ACCEL_BIAS, self.t, np.zeros(3), self.covariance[12:15, 12:15])
+        else:
+            self.recorder.pose(self.t, self.position, self.heading, self.covariance)
+
+    def _advance_time(self, t: float) -> float:
+        if not np.isfinite(t):
+            raise InputError(f"non-finite time stamp after t={self.t:.6f} s")
+        dt = t - self.t
+        if dt < 0:
+            raise InputError(f"time goes backwards at t={t:.6f} s (previous {self.t:.6f} s)")
+        if dt > self.config.max_gap_s:
+            raise InputError(f"gap of {dt:.3f} s in motion input at t={t:.6f} s (max_gap_s={self.config.max_gap_s})")
+        return dt
+
+    # ------------------------------------------------------------------ inputs
+    def process(self, measurement: Measurement) -> None:
+        if measurement.sensor is not self.input:
+            return
+        if isinstance(measurement, ImuSample):
+            self._imu(measurement)
+        elif isinstance(measurement, Odometry):
+            self._odometry(measurement)
+        elif isinstance(measurement, GyroSample):
+            self._gyro(measurement)
+
+    def _imu(self, sample: ImuSample) -> None:
+        if not (np.all(np.isfinite(sample.gyro)) and np.all(np.isfinite(sample.accel))):
+            raise InputError(f"non-finite IMU sample at t={sample.t:.6f} s")
+        dt = self._advance_time(sample.t)
+        if dt == 0.0:
+            return
+        omega, accel = np.asarray(sample.gyro, float), np.asarray(sample.accel, float)
+        increment = so3_exp(omega * dt)
+        world_accel = self.rotation @ accel + GRAVITY_M_S2
+        # error-state transition, first order in dt (right perturbation on rotation)
+        transition = np.eye(15)
+        transition[0:3, 0:3] = increment.T
+        transition[0:3, 9:12] = -np.eye(3) * dt
+        transition[3:6, 0:3] = -self.rotation @ skew(accel) * dt
+        transition[3:6, 12:15] = -self.rotation * dt
+        transition[6:9, 3:6] = np.eye(3) * dt
+        densities = [
+            self.noise.gyro_noise_density or 0.0,
+            self.noise.accel_noise_density or 0.0,
+            self.noise.gyro_bias_walk or 0.0,
+            self.noise.accel_bias_walk or 0.0,
+        ]
+        process = np.zeros((15, 15))
+        process[0:3, 0:3] = np.eye(3) * densities[0] ** 2 * dt
+        process[3:6, 3:6] = np.eye(3) * densities[1] ** 2 * dt
+        process[9:12, 9:12] = np.eye(3) * densities[2] ** 2 * dt
+        process[12:15, 12:15] = np.eye(3) * densities[3] ** 2 * dt
+        self.position = self.position + self.velocity * dt + 0.5 * world_accel * dt**2
+        self.velocity = self.velocity + world_accel * dt
+        self.rotation = self.rotation @ increment
+        covariance = transition @ self.covariance @ transition.T + process
+        self.covariance = 0.5 * (covariance + covariance.T)
+        self.t = sample.t
+        self._record()
+
+    def _odometry(self, odometry: Odometry) -> None:
+        if self.dimension != 2:
+            raise InputError(f"3-D odometry dead reckoning is not supported (t={odometry.t:.6f} s)")
+        dt = self._advance_time(odometry.t)
+        if odometry.relative_pose is not None:
+            increment = np.asarray(odometry.relative_pose, float)
+            increment_cov = np.asarray(odometry.covariance, float)
+        elif odometry.velocity is not None:
+            speed, rate = np.asarray(odometry.velocity, float)
+            increment = np.array([speed * dt, 0.0, rate * dt])
+            jacobian = np.array([[dt, 0.0], [0.0, 0.0], [0.0, dt]])
+            increment_cov = jacobian @ np.asarray(odometry.covariance, float) @ jacobian.T
+        else:
+            raise InputError(f"odometry at t={odometry.t:.6f} s has neither relative_pose nor velocity")
+        if not np.all(np.isfinite(increment)):
+            raise InputError(f"non-finite odometry at t={odometry.t:.6f} s")
+        self._compose_planar(increment, increment_cov)
+        self.t = odometry.t
+        self._record()
+
+    def _gyro(self, sample: GyroSample) -> None:
+        if self.dimension != 2:
+            raise InputError(f"3-D gyro-only dead reckoning is not supported (t={sample.t:.6f} s)")
+        rate = float(np.asarray(sample.rate).ravel()[0])
+        if not np.isfinite(rate):
+            raise InputError(f"non-finite gyro rate at t={sample.t:.6f} s")
+        dt = self._advance_time(sample.t)
+        self.body_velocity_variance += self.config.gyro_velocity_sigma_m_s2**2 * dt
+        increment = np.array([self.body_velocity[0] * dt, self.body_velocity[1] * dt, rate * dt])
+        gyro_variance = (self.noise.gyro_noise_density or 0.0) ** 2 * dt
+        increment_cov = np.diag([self.body_velocity_variance * dt**2] * 2 + [gyro_variance])
+        self._compose_planar(increment, increment_cov)
+        self.t = sample.t
+        self._record()
+
+    def _compose_planar(self, increment: np.ndarray, increment_cov: np.ndarray) -> None:
+        """Pose2 composition x (+) u with right-perturbation covariance (GTSAM's Pose2 order)."""
+        dx, dy, dtheta = increment
+        # xi_new = Ad(U^-1) xi + eta for T_true = T Exp(xi), U_true = U Exp(eta)
+        adjoint_inverse = pose2_inverse_adjoint(increment)
+        self.covariance = adjoint_inverse @ self.covariance @ adjoint_inverse.T + increment_cov
+        self.covariance = 0.5 * (self.covariance + self.covariance.T)
+        self.position = self.position + rot2(self.heading) @ np.array([dx, dy])
+        self.heading = float(wrap_angle(self.heading + dtheta))
+
+    def estimate(self) -> Estimate:
+        return self.recorder.build()
+
+
+def pose2_inverse_adjoint(increment: np.ndarray) -> np.ndarray:
+    """Adjoint map (3, 3) of the inverse of the Pose2 ``increment`` = (dx, dy, dtheta), in
+    GTSAM's [x, y, theta] tangent order: ``Ad(U^-1) = [[R^T, J(-R^T t)], [0, 1]]`` with
+    ``J((a, b)) = (b, -a)``."""
+    dx, dy, dtheta = increment
+    rotation_inverse = rot2(dtheta).T
+    a, b = -rotation_inverse @ np.array([dx, dy])
+    adjoint = np.eye(3)
+    adjoint[:2, :2] = rotation_inverse
+    adjoint[:2, 2] = [b, -a]
+    return adjoint

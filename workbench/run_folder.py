@@ -1,0 +1,167 @@
+"""The run folder of DESIGN.md: one folder per run, every file written atomically.
+
+Layout (all directly in the folder)::
+
+    config.yaml            resolved estimator config, dataset, seed, data options
+    estimate.tum           causal trajectory (TUM, loadable by evo), when there is a pose
+    estimate_smoothed.tum  smoothed trajectory (smoothers)
+    reference.tum          ground-truth trajectory, when known
+    estimate.npz           covariances, state blocks, final map, diagnostics, timing
+    events.json            discrete events (loop closures, skips) and the estimator's notes
+    metrics.json           flat metrics with units, plus provenance (git revision, seed, versions)
+    plots/*.png, *.pdf     figures (see ``workbench.plots``)
+
+``metrics.json`` is written last: its presence marks a finished run (Monte Carlo resume
+relies on that).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from datasets.estimate import Estimate
+from datasets.state import StateHistory
+from datasets.trajectory_io import save_npz_atomic, write_atomic, write_tum
+from workbench.runner import RunResult
+
+METRICS_FILE = "metrics.json"
+_TRACKED_PACKAGES = ("gtsam", "numpy", "scipy", "kiss-icp", "rosbags", "pydantic", "slam-workbench")
+
+
+def git_revision() -> str | None:
+    """The git revision of the workbench source (``+dirty`` when modified), or None."""
+    source = Path(__file__).resolve().parent
+    try:
+        revision = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=source, capture_output=True, text=True, timeout=5, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=source, capture_output=True, text=True, timeout=5
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return revision + ("+dirty" if dirty else "")
+
+
+def package_versions() -> dict[str, str | None]:
+    versions: dict[str, str | None] = {}
+    for name in _TRACKED_PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def _history_arrays(prefix: str, history: StateHistory | None) -> dict[str, np.ndarray]:
+    arrays: dict[str, np.ndarray] = {}
+    if history is None:
+        return arrays
+    if history.pose is not None:
+        arrays[f"{prefix}pose_t"] = history.pose.t
+        arrays[f"{prefix}pose_positions"] = history.pose.positions
+        arrays[f"{prefix}pose_rotations"] = history.pose.rotations
+        if history.pose.covariances is not None:
+            arrays[f"{prefix}pose_covariances"] = history.pose.covariances
+    for name, block in history.blocks.items():
+        arrays[f"{prefix}{name}_t"] = block.t
+        arrays[f"{prefix}{name}_values"] = block.values
+        if block.covariances is not None:
+            arrays[f"{prefix}{name}_covariances"] = block.covariances
+    return arrays
+
+
+def estimate_arrays(estimate: Estimate) -> dict[str, np.ndarray]:
+    """Everything numeric of an ``Estimate`` as flat named arrays for the npz."""
+    arrays = _history_arrays("", estimate.causal)
+    arrays.update(_history_arrays("smoothed_", estimate.smoothed))
+    if estimate.landmarks is not None:
+        arrays["landmarks_ids"] = estimate.landmarks.ids
+        arrays["landmarks_positions"] = estimate.landmarks.positions
+        if estimate.landmarks.covariances is not None:
+            arrays["landmarks_covariances"] = estimate.landmarks.covariances
+    diagnostics = estimate.diagnostics
+    for field_name in (
+        "nis_t", "nis", "nis_dof", "assoc_t", "assoc_measurement_index", "assoc_landmark_id",
+        "assoc_is_new", "landmark_count_t", "landmark_count",
+    ):
+        arrays[f"diag_{field_name}"] = getattr(diagnostics, field_name)
+    for name, values in diagnostics.extras.items():
+        arrays[f"extra_{name}"] = values
+    if estimate.timing is not None:
+        arrays["timing_t"] = estimate.timing.t
+        arrays["timing_seconds"] = estimate.timing.seconds
+        arrays["timing_finalize_seconds"] = np.array(estimate.timing.finalize_seconds)
+    return arrays
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def dump_json(data: Any) -> str:
+    """Deterministic JSON text (sorted keys, numpy scalars converted)."""
+    return json.dumps(data, indent=2, sort_keys=True, default=_json_default) + "\n"
+
+
+def run_provenance(result: RunResult) -> dict[str, Any]:
+    request = result.request
+    return {
+        "estimator": request.estimator,
+        "dataset": result.sequence.name,
+        "seed": request.seed,
+        "git_revision": git_revision(),
+        "package_versions": package_versions(),
+    }
+
+
+def write_run_folder(result: RunResult, out_dir: Path, plots: bool = True) -> dict[str, Any]:
+    """Write the run folder for ``result`` and return its metrics dictionary."""
+    from workbench.metrics.summary import compute_metrics
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / METRICS_FILE).unlink(missing_ok=True)  # a stale marker must not outlive a rerun
+    request = result.request
+    resolved = {
+        "estimator": request.estimator,
+        "dataset": result.sequence.name,
+        "seed": request.seed,
+        "data_options": dict(request.data_options),
+        "dataset_metadata": result.sequence.metadata,
+        "config": result.config.model_dump(mode="json"),
+    }
+    write_atomic(out_dir / "config.yaml", yaml.safe_dump(resolved, sort_keys=True))
+    estimate = result.estimate
+    if estimate.causal.pose is not None:
+        write_tum(out_dir / "estimate.tum", estimate.causal.pose)
+    if estimate.smoothed is not None and estimate.smoothed.pose is not None:
+        write_tum(out_dir / "estimate_smoothed.tum", estimate.smoothed.pose)
+    truth = result.sequence.ground_truth
+    if truth is not None and truth.pose is not None:
+        write_tum(out_dir / "reference.tum", truth.pose)
+    save_npz_atomic(out_dir / "estimate.npz", estimate_arrays(estimate))
+    events = {
+        "notes": list(estimate.notes),
+        "events": [{"t": event.t, "kind": event.kind, **event.details} for event in estimate.diagnostics.events],
+    }
+    write_atomic(out_dir / "events.json", dump_json(events))
+    metrics = compute_metrics(estimate, result.sequence)
+    metrics.update(run_provenance(result))
+    if plots:
+        from workbench.plots import write_run_plots
+
+        write_run_plots(estimate, result.sequence, out_dir / "plots", title=f"{request.estimator} on {result.sequence.name}")
+    write_atomic(out_dir / METRICS_FILE, dump_json(metrics))
+    return metrics

@@ -1,0 +1,118 @@
+"""Run one estimator on one sequence: resolve its config, check sensors, feed, time, collect.
+
+Every estimator is timed the same way here (wall clock around each ``process`` call and
+around the final ``estimate`` call), so cost columns are comparable across estimators.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import yaml
+from pydantic import BaseModel
+
+from datasets.errors import InputError
+from datasets.estimate import Estimate, StepTiming, missing_sensors
+from datasets.options import build_model, yaml_value
+from datasets.sequence import Sequence
+from workbench.registry import estimator_entry, load_dataset
+
+
+def resolve_config(estimator_class: type, config_file: Path | None = None, overrides: dict[str, str] | None = None) -> BaseModel:
+    """The estimator's config: class defaults, then the YAML file, then ``--set`` overrides."""
+    values: dict[str, Any] = {}
+    if config_file is not None:
+        config_file = Path(config_file)
+        if not config_file.is_file():
+            raise InputError(f"{config_file}: no such config file")
+        try:
+            loaded = yaml.safe_load(config_file.read_text()) or {}
+        except yaml.YAMLError as error:
+            raise InputError(f"{config_file}: not valid YAML ({str(error).splitlines()[0]})") from None
+        if not isinstance(loaded, dict):
+            raise InputError(f"{config_file}: expected a mapping of option: value")
+        values.update(loaded)
+    for key, text in (overrides or {}).items():
+        values[key] = yaml_value(text)
+    return build_model(estimator_class.Config, values, f"config of {estimator_class.__name__}")
+
+
+def check_compatible(estimator_name: str, estimator_class: type, sequence: Sequence) -> None:
+    """``InputError`` naming the missing sensor(s) or the unsupported dimension."""
+    missing = missing_sensors(estimator_class.sensor_options, sequence.sensors)
+    if missing:
+        names = ", ".join(sorted(sensor.value for sensor in missing))
+        provided = ", ".join(sorted(sensor.value for sensor in sequence.sensors)) or "none"
+        raise InputError(
+            f"estimator '{estimator_name}' needs sensor(s) {names}, which dataset '{sequence.name}' "
+            f"does not provide (it provides: {provided})"
+        )
+    if sequence.dimension not in estimator_class.dimensions:
+        raise InputError(f"estimator '{estimator_name}' does not support {sequence.dimension}-D dataset '{sequence.name}'")
+
+
+def is_compatible(estimator_class: type, sequence: Sequence) -> bool:
+    """Whether the estimator can run on the sequence (sensors and dimension)."""
+    return not missing_sensors(estimator_class.sensor_options, sequence.sensors) and (
+        sequence.dimension in estimator_class.dimensions
+    )
+
+
+def run_estimator(
+    estimator_class: type,
+    config: BaseModel,
+    sequence: Sequence,
+    on_step: Callable[[float], None] | None = None,
+) -> Estimate:
+    """Feed the sequence to a fresh estimator and return its ``Estimate`` with timing."""
+    estimator = estimator_class(config, sequence)
+    stamps: list[float] = []
+    seconds: list[float] = []
+    clock = time.perf_counter
+    for measurement in sequence.measurements():
+        start = clock()
+        estimator.process(measurement)
+        seconds.append(clock() - start)
+        stamps.append(measurement.t)
+        if on_step is not None:
+            on_step(measurement.t)
+    start = clock()
+    estimate = estimator.estimate()
+    finalize = clock() - start
+    return replace(estimate, timing=StepTiming(np.array(stamps), np.array(seconds), finalize))
+
+
+@dataclass(frozen=True)
+class RunRequest:
+    """Everything that defines one run (the resolved config is recorded in the run folder)."""
+
+    estimator: str
+    dataset: str
+    seed: int = 0
+    config_file: Path | None = None
+    overrides: tuple[tuple[str, str], ...] = ()
+    data_options: tuple[tuple[str, str], ...] = ()
+
+
+@dataclass(frozen=True)
+class RunResult:
+    request: RunRequest
+    sequence: Sequence
+    config: BaseModel
+    estimate: Estimate
+
+
+def execute(request: RunRequest, sequence: Sequence | None = None, on_step: Callable[[float], None] | None = None) -> RunResult:
+    """Resolve names, load the dataset (unless given), check compatibility and run."""
+    entry = estimator_entry(request.estimator)
+    estimator_class = entry.load()
+    config = resolve_config(estimator_class, request.config_file, dict(request.overrides))
+    if sequence is None:
+        sequence = load_dataset(request.dataset, request.seed, dict(request.data_options))
+    check_compatible(request.estimator, estimator_class, sequence)
+    estimate = run_estimator(estimator_class, config, sequence, on_step)
+    return RunResult(request, sequence, config, estimate)
