@@ -45,7 +45,9 @@ def check_compatible(estimator_name: str, estimator_class: type, sequence: Seque
     """``InputError`` naming the missing sensor(s) or the unsupported dimension."""
     missing = missing_sensors(estimator_class.sensor_options, sequence.sensors)
     if missing:
-        names = ", ".join(sorted(sensor.value for sensor in missing))
+        names = " | ".join(
+            "+".join(sorted(sensor.value for sensor in option)) for option in estimator_class.sensor_options
+        )
         provided = ", ".join(sorted(sensor.value for sensor in sequence.sensors)) or "none"
         raise InputError(
             f"estimator '{estimator_name}' needs sensor(s) {names}, which dataset '{sequence.name}' "
