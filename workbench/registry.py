@@ -77,6 +77,21 @@ DATASETS: tuple[DatasetEntry, ...] = (
         examples=("sim:aghili-rover", "sim:guerreiro-loop", "sim:circle", "sim:static"),
         describe_target="datasets.simulation.scenarios:describe_scenarios",
     ),
+    DatasetEntry(
+        "utias",
+        "datasets.utias:load",
+        "UTIAS MRCLAM real 2-D data: odometry, barcode range/bearing, Vicon truth of poses and landmarks",
+        argument="FOLDER#robotN",
+        examples=("utias:../shared/data/utias-mrclam1#robot1",),
+        describe_target="datasets.utias:describe",
+    ),
+    DatasetEntry(
+        "victoria-park",
+        "datasets.victoria_park:load",
+        "Victoria Park (gtsam Data): odometry increments and tree landmarks, nominal 0.2 s step, no truth",
+        examples=("victoria-park",),
+        describe_target="datasets.victoria_park:describe",
+    ),
 )
 
 

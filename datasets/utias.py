@@ -1,0 +1,447 @@
+"""UTIAS Multi-Robot Cooperative Localization and Mapping (MRCLAM) loader: ``utias:FOLDER#robotN``.
+
+Real planar data (Leung et al., IJRR 2011): one robot's odometry (forward velocity, angular
+velocity), monocular range/bearing sightings of barcoded landmarks, Vicon ground truth of
+the robot and surveyed landmark positions. Any MRCLAM dataset folder works (files
+``Barcodes.dat``, ``Landmark_Groundtruth.dat``, ``RobotN_{Odometry,Measurement,Groundtruth}.dat``).
+
+What the stream contains (time-ordered; at equal times motion first, then the scan):
+- ``GyroSample(t, rate=[omega])`` for every odometry row (the rate input of gyro-driven
+  estimators such as ``sensor-based``);
+- ``Odometry(t, velocity=[v, omega])`` for every odometry row; the sample at ``t`` is meant
+  for the interval ending at ``t`` (the workbench's convention, as in dead reckoning);
+  ``covariance`` is the per-sample white-noise covariance ``diag(sigma_v^2, sigma_omega^2)``
+  (the integrated increment over ``dt`` then has covariance ``dt^2 * covariance``);
+- ``LandmarkScan`` of the sightings sharing one time: body-frame points
+  ``p = r (cos b, sin b)`` with the first-order covariance ``J diag(sr^2, sb^2) J^T``.
+
+Quirks handled (all counted in ``Sequence.metadata['counts']``):
+- *Rounded time column.* This copy is resampled on a 0.02 s grid but prints 5 significant
+  digits, so after 1000 s the times are rounded to 0.1 s. When every printed odometry and
+  ground-truth time is consistent with ``row index x grid_step_s`` within its printing
+  resolution, the row index gives the time (``time_source='row_grid'``); measurement
+  times are snapped to the grid and stay uncertain by +/-0.05 s after 1000 s. Otherwise
+  (an original, irregular MRCLAM folder) the printed times are used, shifted to start at 0
+  (``time_source='printed'``), and rows whose time does not increase are dropped.
+- *Other robots' barcodes* (subjects 1-5, the MRCLAM robots) are not static landmarks:
+  dropped. *Unknown barcodes* (not in ``Barcodes.dat``): dropped.
+- *Stale repeats*: a sighting identical (range and bearing) to the previous sighting of the
+  same barcode is a repeat of an old camera result: dropped (``drop_stale_repeats``).
+- *Duplicate sightings*: the same barcode twice at one (snapped) time: the first is kept.
+- *Out-of-range times*: sightings before the first or after the last odometry time: dropped.
+- *Vicon heading glitches*: the resampling interpolated some headings the long way round
+  across +/-pi (runs of 1-5 samples). ``repair_heading_glitches`` replaces every run whose
+  implied rate exceeds ``max_heading_rate_rad_s`` by the short-way interpolation between
+  the good samples around it; the number of repaired samples is in the metadata.
+- *Swapped landmark labels*: barcodes 18 and 61 (subjects 11 and 17) are swapped with
+  respect to ``Landmark_Groundtruth.dat`` (the robots see barcode 18 where subject 17 is
+  surveyed). By default (``fix_swapped_labels=true``) the ground-truth map assigns
+  barcode 18 the position surveyed for subject 17 and barcode 61 that of subject 11, so
+  ``landmark_rmse_m`` measures the map, not the labelling error; with ``false`` the file's
+  labels are kept as they are. ``tests/test_utias.py`` checks the swap against the data.
+
+Ground truth: Vicon poses (heading repaired), world and body velocity by central
+differences of the Vicon positions (derived, not measured), the surveyed landmark map
+(ids = barcodes) and the true barcode of every sighting (``scan_ids``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from datasets.errors import InputError
+from datasets.measurements import GyroSample, LandmarkScan, Measurement, Odometry, Sensor
+from datasets.options import parse_options
+from datasets.rotations import rot2_batch, wrap_angle
+from datasets.sequence import InitialState, NoiseSpec, Sequence
+from datasets.state import BlockName, Frame, GroundTruth, LandmarkMap, StateBlock, StateHistory
+from datasets.trajectory import Trajectory
+
+ROBOT_SUBJECTS = frozenset({1, 2, 3, 4, 5})
+"""MRCLAM subjects 1-5 are the robots; their barcodes are not static landmarks."""
+
+SWAPPED_LABEL_SUBJECTS = (11, 17)
+"""Subjects whose survey labels are swapped in MRCLAM dataset 1 (barcodes 18 and 61)."""
+
+
+class UtiasOptions(BaseModel):
+    """``--data`` options of ``utias:FOLDER#robotN``."""
+
+    model_config = ConfigDict(extra="forbid")
+    ids: bool = Field(True, description="attach the barcodes to the scans (false: withheld, association by the estimator)")
+    bearing_sigma_rad: float = Field(0.03, gt=0, description="bearing noise std [rad] (measured on this data: about 0.03)")
+    range_sigma_fraction: float = Field(0.05, ge=0, description="range noise std as a fraction of the range")
+    range_sigma_floor_m: float = Field(0.05, gt=0, description="lower bound of the range noise std [m]")
+    odometry_sigma_v_m_s: float = Field(
+        0.1, gt=0, description="per-sample white-noise std of the forward velocity [m/s] (fits the drift vs Vicon over 1-20 s)"
+    )
+    odometry_sigma_omega_rad_s: float = Field(
+        0.3, gt=0, description="per-sample white-noise std of the angular velocity [rad/s] (fits the heading drift vs Vicon)"
+    )
+    grid_step_s: float = Field(0.02, gt=0, description="row spacing of the resampled files [s]")
+    drop_stale_repeats: bool = Field(True, description="drop a sighting identical to the previous one of the same barcode")
+    fix_swapped_labels: bool = Field(True, description="ground truth: swap the survey positions of barcodes 18 and 61 (see module doc)")
+    max_heading_rate_rad_s: float = Field(3.0, gt=0, description="Vicon heading changes faster than this are glitches")
+    duration_s: float | None = Field(None, gt=0, description="use only the first duration_s seconds")
+    odometry_gap_s: float = Field(0.5, gt=0, description="odometry gaps longer than this are listed in the metadata")
+
+
+@dataclass(frozen=True)
+class _Table:
+    """A parsed numeric file: values (n, k) and the 1-based line number of every row."""
+
+    values: np.ndarray
+    lines: np.ndarray
+    path: Path
+
+
+def read_table(path: Path, columns: tuple[str, ...]) -> _Table:
+    """Read a whitespace-separated numeric file ('#' comments); ``InputError`` names file and line.
+
+    Args:
+        path: the file.
+        columns: names of the expected columns (their count is enforced on every row).
+    """
+    if not path.is_file():
+        raise InputError(f"{path}: file not found")
+    rows: list[list[float]] = []
+    lines: list[int] = []
+    with path.open("r", encoding="utf-8", errors="replace") as handle:
+        for number, line in enumerate(handle, start=1):
+            text = line.split("#", 1)[0].strip()
+            if not text:
+                continue
+            fields = text.split()
+            if len(fields) != len(columns):
+                raise InputError(
+                    f"{path}:{number}: expected {len(columns)} columns ({', '.join(columns)}), got {len(fields)}: '{text}'"
+                )
+            try:
+                values = [float(field) for field in fields]
+            except ValueError:
+                raise InputError(f"{path}:{number}: not a number in '{text}'") from None
+            if not all(np.isfinite(values)):
+                raise InputError(f"{path}:{number}: non-finite value in '{text}'")
+            rows.append(values)
+            lines.append(number)
+    if not rows:
+        raise InputError(f"{path}: no data rows")
+    return _Table(np.array(rows), np.array(lines), path)
+
+
+def printing_resolution(t: np.ndarray, significant_digits: int = 5) -> np.ndarray:
+    """Resolution [s] of times printed with ``significant_digits`` (0.1 s for 1000-9999 s)."""
+    magnitude = np.floor(np.log10(np.maximum(np.abs(t), 1e-12)))
+    return 10.0 ** (magnitude - (significant_digits - 1))
+
+
+def grid_times(printed: np.ndarray, step_s: float) -> np.ndarray | None:
+    """Row-index times ``t0 + i * step_s`` when every printed time agrees within its printing
+    resolution (half a unit of the last printed digit, plus float slack); else None."""
+    grid = printed[0] + np.arange(len(printed)) * step_s
+    tolerance = 0.5 * printing_resolution(grid) + 1e-9
+    return grid if np.all(np.abs(printed - grid) <= tolerance) else None
+
+
+def repair_heading_glitches(heading: np.ndarray, step_s: np.ndarray | float, max_rate_rad_s: float) -> tuple[np.ndarray, int]:
+    """Replace runs of headings that jump faster than ``max_rate_rad_s`` by the short-way
+    interpolation between the good samples around them.
+
+    A sample is good when its wrapped change from the last good sample is within
+    ``max_rate_rad_s`` times the elapsed time. Samples between two good ones are then
+    interpolated (wrapped, linear in index). A run longer than 50 samples is accepted as
+    real motion (the last good sample is reset) so that the repair cannot run away.
+
+    Args:
+        heading: headings [rad], shape (N,).
+        step_s: sample spacing [s] (scalar) or times (N,) [s].
+        max_rate_rad_s: largest physical heading rate [rad/s].
+
+    Returns:
+        (repaired headings wrapped to [-pi, pi), number of samples replaced).
+    """
+    heading = np.asarray(heading, dtype=float)
+    times = np.arange(len(heading)) * step_s if np.isscalar(step_s) else np.asarray(step_s, dtype=float)
+    repaired = heading.copy()
+    replaced = 0
+    last_good = 0
+    for i in range(1, len(heading)):
+        elapsed = times[i] - times[last_good]
+        jump = abs(float(wrap_angle(heading[i] - repaired[last_good])))
+        if jump <= max_rate_rad_s * max(elapsed, 1e-9) or i - last_good > 50:
+            gap = i - last_good
+            if gap > 1 and i - last_good <= 50:
+                change = float(wrap_angle(heading[i] - repaired[last_good]))
+                fractions = np.arange(1, gap) / gap
+                repaired[last_good + 1 : i] = wrap_angle(repaired[last_good] + fractions * change)
+                replaced += gap - 1
+            last_good = i
+    return np.asarray(wrap_angle(repaired)), replaced
+
+
+def range_bearing_to_points(
+    ranges_m: np.ndarray, bearings_rad: np.ndarray, range_sigma_m: np.ndarray, bearing_sigma_rad: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame points and their first-order covariances from range/bearing.
+
+    ``p = r (cos b, sin b)``, ``J = [[cos b, -r sin b], [sin b, r cos b]]``,
+    ``cov = J diag(sigma_r^2, sigma_b^2) J^T``.
+
+    Args:
+        ranges_m, bearings_rad, range_sigma_m: shape (k,).
+        bearing_sigma_rad: scalar.
+
+    Returns:
+        points (k, 2) [m], covariances (k, 2, 2) [m^2].
+    """
+    c, s = np.cos(bearings_rad), np.sin(bearings_rad)
+    points = np.stack([ranges_m * c, ranges_m * s], axis=-1)
+    jacobian = np.stack([np.stack([c, -ranges_m * s], -1), np.stack([s, ranges_m * c], -1)], -2)
+    noise = np.zeros((len(ranges_m), 2, 2))
+    noise[:, 0, 0] = range_sigma_m**2
+    noise[:, 1, 1] = bearing_sigma_rad**2
+    covariances = jacobian @ noise @ np.swapaxes(jacobian, -1, -2)
+    return points, 0.5 * (covariances + np.swapaxes(covariances, -1, -2))
+
+
+def parse_argument(argument: str | None) -> tuple[Path, int]:
+    """``'FOLDER#robotN'`` -> (folder, N); ``InputError`` otherwise."""
+    if not argument or "#" not in argument:
+        raise InputError(f"utias: expected utias:FOLDER#robotN (e.g. utias:../shared/data/utias-mrclam1#robot1), got '{argument}'")
+    folder_text, _, robot_text = argument.rpartition("#")
+    robot_text = robot_text.strip().lower()
+    if not robot_text.startswith("robot") or not robot_text[5:].isdigit():
+        raise InputError(f"utias: robot must be written robotN (e.g. robot1), got '{robot_text}'")
+    folder = Path(folder_text).expanduser()
+    if not folder.is_dir():
+        raise InputError(f"utias: dataset folder '{folder}' does not exist")
+    return folder, int(robot_text[5:])
+
+
+def describe() -> list[str]:
+    """Lines for ``workbench list --verbose``."""
+    from datasets.options import describe_model
+
+    return ["utias:FOLDER#robotN  any MRCLAM folder; --data options:"] + ["  " + line for line in describe_model(UtiasOptions)]
+
+
+def load(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
+    """Load ``utias:FOLDER#robotN`` (``seed`` is unused: real data)."""
+    config = parse_options(UtiasOptions, options, "utias --data")
+    folder, robot = parse_argument(argument)
+    return load_mrclam(folder, robot, config, name=f"utias:{argument}")
+
+
+def _barcode_tables(folder: Path) -> tuple[dict[int, int], dict[int, np.ndarray]]:
+    """(barcode -> subject, subject -> surveyed (x, y))."""
+    barcodes = read_table(folder / "Barcodes.dat", ("subject", "barcode"))
+    subject_of: dict[int, int] = {}
+    for (subject, barcode), line in zip(barcodes.values, barcodes.lines):
+        if int(barcode) in subject_of:
+            raise InputError(f"{barcodes.path}:{line}: barcode {int(barcode)} listed twice")
+        subject_of[int(barcode)] = int(subject)
+    survey = read_table(folder / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
+    positions = {int(row[0]): row[1:3].copy() for row in survey.values}
+    return subject_of, positions
+
+
+def load_mrclam(folder: Path, robot: int, config: UtiasOptions, name: str | None = None) -> Sequence:
+    """Build the ``Sequence`` of robot ``robot`` in the MRCLAM folder ``folder``."""
+    name = name or f"utias:{folder}#robot{robot}"
+    counts: dict[str, int] = {}
+    subject_of, surveyed = _barcode_tables(folder)
+    odometry = read_table(folder / f"Robot{robot}_Odometry.dat", ("time", "v", "omega"))
+    truth = read_table(folder / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "heading"))
+    sightings = read_table(folder / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
+
+    step = config.grid_step_s
+    odo_grid = grid_times(odometry.values[:, 0], step)
+    truth_grid = grid_times(truth.values[:, 0], step)
+    if odo_grid is not None and truth_grid is not None:
+        time_source = "row_grid"
+        odo_t, odo_values = odo_grid, odometry.values[:, 1:]
+        truth_t, truth_values = truth_grid, truth.values[:, 1:]
+        origin = min(odo_t[0], truth_t[0])
+        meas_t = np.round((sightings.values[:, 0] - origin) / step) * step + origin
+    else:
+        time_source = "printed"
+        odo_t, odo_values, counts["odometry_time_not_increasing"] = _increasing(odometry.values[:, 0], odometry.values[:, 1:])
+        truth_t, truth_values, counts["groundtruth_time_not_increasing"] = _increasing(truth.values[:, 0], truth.values[:, 1:])
+        meas_t = sightings.values[:, 0].copy()
+        origin = min(odo_t[0], truth_t[0])
+    odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
+    if config.duration_s is not None:
+        keep = odo_t <= config.duration_s
+        odo_t, odo_values = odo_t[keep], odo_values[keep]
+        keep = truth_t <= config.duration_s
+        truth_t, truth_values = truth_t[keep], truth_values[keep]
+    if len(odo_t) < 2 or len(truth_t) < 2:
+        raise InputError(f"{odometry.path}: fewer than two odometry or ground-truth rows in the selected time span")
+
+    scans, scan_ids, meas_counts = _build_scans(sightings, meas_t, odo_t, subject_of, config)
+    counts.update(meas_counts)
+    gaps = np.diff(odo_t)
+    long_gaps = [(float(odo_t[i]), float(gaps[i])) for i in np.flatnonzero(gaps > config.odometry_gap_s)]
+
+    heading, repaired = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
+    counts["vicon_heading_samples_repaired"] = repaired
+    ground_truth = _ground_truth(truth_t, truth_values[:, :2], heading, subject_of, surveyed, config, scan_ids)
+
+    noise = NoiseSpec(
+        gyro_noise_density=config.odometry_sigma_omega_rad_s * np.sqrt(step),
+        rate_hz={"odometry": 1.0 / step, "gyro": 1.0 / step},
+    )
+    start_velocity = ground_truth.history.block(BlockName.VELOCITY).values[0]
+    initial_state = InitialState(
+        t=float(truth_t[0]),
+        position=truth_values[0, :2].copy(),
+        rotation=np.array(heading[0]),
+        velocity=start_velocity.copy(),
+        position_sigma_m=1e-3,
+        rotation_sigma_rad=1e-3,
+        velocity_sigma_m_s=0.05,
+    )
+    odo_cov = np.diag([config.odometry_sigma_v_m_s**2, config.odometry_sigma_omega_rad_s**2])
+    ids_visible = config.ids
+
+    def stream() -> Iterator[Measurement]:
+        scan_index = 0
+        for t, (speed, rate) in zip(odo_t, odo_values):
+            while scan_index < len(scans) and scans[scan_index].t < t:
+                yield _with_ids(scans[scan_index], ids_visible)
+                scan_index += 1
+            yield GyroSample(t=float(t), rate=np.array([rate]))
+            yield Odometry(t=float(t), covariance=odo_cov, velocity=np.array([speed, rate]))
+            while scan_index < len(scans) and scans[scan_index].t <= t:
+                yield _with_ids(scans[scan_index], ids_visible)
+                scan_index += 1
+
+    metadata = {
+        "source": str(folder),
+        "robot": robot,
+        "time_source": time_source,
+        "time_origin_s": float(origin),
+        "measurement_time_uncertainty_s": 0.05 if time_source == "row_grid" and odo_t[-1] + origin >= 1000 else 0.0,
+        "counts": {key: int(value) for key, value in counts.items()},
+        "odometry_gaps": long_gaps,
+        "swapped_labels": "fixed (barcode 18 <-> 61 survey positions)" if config.fix_swapped_labels else "as in the file",
+        "options": config.model_dump(),
+        "scans": len(scans),
+    }
+    return Sequence(
+        name=name,
+        dimension=2,
+        sensors=frozenset({Sensor.ODOMETRY, Sensor.GYRO, Sensor.LANDMARKS}),
+        stream=stream,
+        ground_truth=ground_truth,
+        noise=noise,
+        initial_state=initial_state,
+        metadata=metadata,
+    )
+
+
+def _with_ids(scan: LandmarkScan, visible: bool) -> LandmarkScan:
+    return scan if visible else LandmarkScan(t=scan.t, points=scan.points, covariances=scan.covariances, ids=None)
+
+
+def _increasing(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Keep rows whose time increases strictly over every earlier kept row."""
+    keep = np.zeros(len(t), dtype=bool)
+    latest = -np.inf
+    for i, time in enumerate(t):
+        if time > latest:
+            keep[i] = True
+            latest = time
+    return t[keep], values[keep], int((~keep).sum())
+
+
+def _build_scans(
+    sightings: _Table, meas_t: np.ndarray, odo_t: np.ndarray, subject_of: dict[int, int], config: UtiasOptions
+) -> tuple[list[LandmarkScan], tuple[tuple[float, np.ndarray], ...], dict[str, int]]:
+    """Group sightings into scans (one per time), dropping what is not a landmark sighting."""
+    counts = dict.fromkeys(
+        ("robot_barcodes", "unknown_barcodes", "stale_repeats", "duplicate_sightings", "out_of_range_times", "time_going_back", "nonpositive_range"),
+        0,
+    )
+    last_seen: dict[int, tuple[float, float]] = {}
+    groups: dict[float, dict[int, tuple[float, float]]] = {}
+    order: list[float] = []
+    latest = -np.inf
+    for row, t in zip(sightings.values, meas_t):
+        barcode, rng, bearing = int(row[1]), float(row[2]), float(row[3])
+        if t < odo_t[0] - 1e-9 or t > odo_t[-1] + 1e-9:
+            counts["out_of_range_times"] += 1
+            continue
+        if t < latest - 1e-9:
+            counts["time_going_back"] += 1
+            continue
+        latest = max(latest, t)
+        subject = subject_of.get(barcode)
+        if subject is None:
+            counts["unknown_barcodes"] += 1
+            continue
+        if subject in ROBOT_SUBJECTS:
+            counts["robot_barcodes"] += 1
+            continue
+        if rng <= 0.0:
+            counts["nonpositive_range"] += 1
+            continue
+        if config.drop_stale_repeats and last_seen.get(barcode) == (rng, bearing):
+            counts["stale_repeats"] += 1
+            continue
+        last_seen[barcode] = (rng, bearing)
+        key = round(float(t), 9)
+        if key not in groups:
+            groups[key] = {}
+            order.append(key)
+        if barcode in groups[key]:
+            counts["duplicate_sightings"] += 1
+            continue
+        groups[key][barcode] = (rng, bearing)
+    scans: list[LandmarkScan] = []
+    scan_ids: list[tuple[float, np.ndarray]] = []
+    for key in order:
+        group = groups[key]
+        ids = np.array(sorted(group), dtype=int)
+        ranges = np.array([group[i][0] for i in ids])
+        bearings = np.array([group[i][1] for i in ids])
+        sigma_r = np.maximum(config.range_sigma_floor_m, config.range_sigma_fraction * ranges)
+        points, covariances = range_bearing_to_points(ranges, bearings, sigma_r, config.bearing_sigma_rad)
+        scans.append(LandmarkScan(t=key, points=points, covariances=covariances, ids=ids))
+        scan_ids.append((key, ids))
+    return scans, tuple(scan_ids), counts
+
+
+def _ground_truth(
+    t: np.ndarray,
+    positions: np.ndarray,
+    heading: np.ndarray,
+    subject_of: dict[int, int],
+    surveyed: dict[int, np.ndarray],
+    config: UtiasOptions,
+    scan_ids: tuple[tuple[float, np.ndarray], ...],
+) -> GroundTruth:
+    """Vicon poses, finite-difference velocities, surveyed map keyed by barcode."""
+    world_velocity = np.stack([np.gradient(positions[:, 0], t), np.gradient(positions[:, 1], t)], axis=-1)
+    body_velocity = np.einsum("nji,nj->ni", rot2_batch(heading), world_velocity)
+    location = dict(surveyed)
+    if config.fix_swapped_labels and all(s in location for s in SWAPPED_LABEL_SUBJECTS):
+        first, second = SWAPPED_LABEL_SUBJECTS
+        location[first], location[second] = surveyed[second], surveyed[first]
+    barcode_of = {subject: barcode for barcode, subject in subject_of.items()}
+    ids = np.array(sorted(barcode_of[s] for s in location if s in barcode_of and s not in ROBOT_SUBJECTS), dtype=int)
+    subject_by_barcode = {barcode_of[s]: s for s in location if s in barcode_of}
+    landmark_positions = np.array([location[subject_by_barcode[i]] for i in ids]).reshape(-1, 2)
+    pose = Trajectory(t=t.copy(), positions=positions.copy(), rotations=heading.copy())
+    history = StateHistory(pose=pose, blocks={BlockName.VELOCITY: StateBlock(t.copy(), world_velocity, None, Frame.WORLD)})
+    return GroundTruth(
+        history=history,
+        landmarks=LandmarkMap(ids=ids, positions=landmark_positions, frame=Frame.WORLD),
+        body_velocity=StateBlock(t.copy(), body_velocity, None, Frame.BODY),
+        scan_ids=scan_ids,
+    )
