@@ -1,0 +1,257 @@
+"""``compute_metrics``: the flat ``metrics.json`` dictionary of one run.
+
+Every key carries its unit where it has one; a value is None (JSON null) where it is not
+defined (no ground truth, no covariance, no smoothed history, no world pose, ...). Values
+are plain Python floats and ints, so ``json.dumps`` takes the dictionary as it is.
+
+Keys (``_smoothed`` copies, placed before the unit, are computed on ``Estimate.smoothed``
+and are None for filters):
+
+accuracy (causal pose against ``GroundTruth.pose``; pairs by evo's nearest-stamp
+association within 0.01 s, so the numbers equal ``workbench metrics`` on the run's TUM
+files):
+    ``ate_rmse_m`` (SE(3) alignment for 3-D poses, SE(2) for planar; a static or straight
+    trajectory is aligned with one of the equally good minimisers), ``ate_rmse_raw_m`` (no
+    alignment), ``rpe_trans_rmse_m`` and ``rpe_rot_rmse_deg`` (1-frame RPE),
+    ``final_orientation_error_deg`` (Aghili eq. (43) at the last pose the truth covers),
+    ``gps_holdout_rmse_m`` (estimated positions interpolated linearly at
+    ``GroundTruth.held_out_positions`` stamps inside the estimate's span, no alignment).
+consistency (``state_errors.nees_series``: truth looked up at the estimate's times):
+    ``nees_pose_mean`` (dof 6 or 3), ``nees_pose_inside_fraction`` (single-run NEES inside
+    its two-sided 95% chi-square interval), ``nees_attitude_mean``, ``nees_position_mean``,
+    ``nees_velocity_mean``, ``nees_gyro_bias_mean``, ``nees_accel_bias_mean``,
+    ``nees_landmarks_mean`` (per landmark and snapshot, d dof; the final map when no
+    snapshot was recorded). Means skip NaN values (singular covariances).
+innovations: ``nis_mean``, ``nis_dof`` (None when dofs differ), ``nis_inside_fraction``
+    (two-sided 95% per dof), ``nis_below_95_fraction`` (one-sided, Guerreiro eq. (11)).
+map (``Estimate.landmarks`` against ``GroundTruth.landmarks``; estimator ids mapped to true
+ids by ``data_association.landmark_id_mapping``: majority true id of the association
+records, else the same id): ``landmark_rmse_m``, ``landmarks_mapped``.
+association: ``association_precision``, ``association_recall``, ``loop_closures`` (events),
+    ``loop_closure_precision`` (``data_association``).
+cost: ``steps`` (timing entries = measurements processed; without timing, causal pose
+    records), ``time_per_step_ms_median``, ``time_per_step_ms_p99``, ``time_total_s``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from datasets.errors import InputError
+from datasets.estimate import Estimate
+from datasets.sequence import Sequence
+from datasets.state import GroundTruth, LandmarkMap, StateHistory
+from datasets.trajectory import Trajectory
+from workbench.metrics.ate import ate_errors, paired_trajectories
+from workbench.metrics.consistency import below_fraction, inside_fraction
+from workbench.metrics.data_association import (
+    landmark_id_mapping,
+    majority_mapping,
+    score_associations,
+    score_loop_closures,
+    true_ids_of_records,
+)
+from workbench.metrics.orientation import orientation_error_rad, planar_orientation_error_rad
+from workbench.metrics.rpe import rpe_errors
+from workbench.metrics.state_errors import landmark_errors, landmark_nees_series, nees_series, truth_pose_at
+from workbench.metrics.timestamps import vectors_at
+
+Metrics = dict[str, float | int | None]
+
+ACCURACY_KEYS = (
+    "ate_rmse_m",
+    "ate_rmse_raw_m",
+    "rpe_trans_rmse_m",
+    "rpe_rot_rmse_deg",
+    "final_orientation_error_deg",
+    "gps_holdout_rmse_m",
+)
+CONSISTENCY_KEYS = (
+    "nees_pose_mean",
+    "nees_pose_inside_fraction",
+    "nees_attitude_mean",
+    "nees_position_mean",
+    "nees_velocity_mean",
+    "nees_gyro_bias_mean",
+    "nees_accel_bias_mean",
+    "nees_landmarks_mean",
+)
+UNIT_SUFFIXES = ("_m", "_deg", "_ms", "_s")
+
+
+def smoothed_key(key: str) -> str:
+    """``ate_rmse_m`` -> ``ate_rmse_smoothed_m``; ``nees_pose_mean`` -> ``nees_pose_mean_smoothed``."""
+    for unit in UNIT_SUFFIXES:
+        if key.endswith(unit):
+            return key[: -len(unit)] + "_smoothed" + unit
+    return key + "_smoothed"
+
+
+def _number(value: float | int | None) -> float | None:
+    """A finite Python float, or None."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _finite_mean(values: np.ndarray) -> float | None:
+    values = np.asarray(values, dtype=float)
+    finite = values[np.isfinite(values)]
+    return _number(np.mean(finite)) if finite.size else None
+
+
+def _rmse(errors: np.ndarray) -> float | None:
+    errors = np.asarray(errors, dtype=float)
+    return _number(math.sqrt(float(np.mean(errors**2)))) if errors.size else None
+
+
+def accuracy_metrics(pose: Trajectory | None, ground_truth: GroundTruth | None) -> Metrics:
+    """ATE, RPE, final orientation error and held-out GPS RMSE of one pose history."""
+    metrics: Metrics = dict.fromkeys(ACCURACY_KEYS)
+    if pose is None or len(pose) == 0 or ground_truth is None:
+        return metrics
+    metrics["gps_holdout_rmse_m"] = _holdout_rmse(pose, ground_truth)
+    if ground_truth.pose is None or len(ground_truth.pose) == 0:
+        return metrics
+    try:
+        reference, estimate = paired_trajectories(ground_truth.pose, pose)
+    except InputError:
+        return metrics  # no stamps in common: nothing to compare
+    align = "se3" if pose.dimension == 3 else "se2"
+    metrics["ate_rmse_m"] = _rmse(ate_errors(reference, estimate, align, allow_degenerate=True)[0])
+    metrics["ate_rmse_raw_m"] = _rmse(ate_errors(reference, estimate, "none")[0])
+    if len(estimate) >= 2:
+        _, trans, rot_deg = rpe_errors(reference, estimate, 1, "frames")
+        metrics["rpe_trans_rmse_m"] = _rmse(trans)
+        metrics["rpe_rot_rmse_deg"] = _rmse(rot_deg)
+    metrics["final_orientation_error_deg"] = _final_orientation_error_deg(pose, ground_truth)
+    return metrics
+
+
+def _final_orientation_error_deg(pose: Trajectory, ground_truth: GroundTruth) -> float | None:
+    found = truth_pose_at(ground_truth, pose.t)
+    if found is None or not np.any(found[1]) or found[0].dimension != pose.dimension:
+        return None
+    truth, valid = found
+    last = int(np.flatnonzero(valid)[-1])
+    if pose.dimension == 3:
+        angle = orientation_error_rad(pose.rotations[last], truth.rotations[-1])
+    else:
+        angle = planar_orientation_error_rad(pose.rotations[last], truth.rotations[-1])
+    return _number(np.rad2deg(angle))
+
+
+def _holdout_rmse(pose: Trajectory, ground_truth: GroundTruth) -> float | None:
+    if ground_truth.held_out_positions is None:
+        return None
+    stamps, positions = ground_truth.held_out_positions
+    estimated, valid = vectors_at(pose.t, pose.positions, np.asarray(stamps, dtype=float))
+    if not np.any(valid):
+        return None
+    shared = min(estimated.shape[1], np.asarray(positions).shape[1])
+    difference = estimated[:, :shared] - np.asarray(positions, dtype=float)[valid, :shared]
+    return _rmse(np.linalg.norm(difference, axis=1))
+
+
+def consistency_metrics(history: StateHistory | None, ground_truth: GroundTruth | None, mapping: dict[int, int], final_map: LandmarkMap | None = None) -> Metrics:
+    """Mean NEES of every block, and the fraction of pose NEES inside the 95% interval."""
+    metrics: Metrics = dict.fromkeys(CONSISTENCY_KEYS)
+    if history is None or ground_truth is None:
+        return metrics
+    series = nees_series(history, ground_truth, mapping)
+    if "landmarks" not in series and final_map is not None and final_map.covariances is not None:
+        final_series = landmark_nees_series((final_map,), mapping, ground_truth)
+        if final_series is not None:
+            series["landmarks"] = final_series
+    for block, values in series.items():
+        key = f"nees_{block}_mean"
+        if key in metrics:
+            metrics[key] = _finite_mean(values.nees)
+    if "pose" in series:
+        metrics["nees_pose_inside_fraction"] = _number(inside_fraction(series["pose"].nees, series["pose"].dof))
+    return metrics
+
+
+def nis_metrics(estimate: Estimate) -> Metrics:
+    """NIS statistics of the estimate's innovations."""
+    diagnostics = estimate.diagnostics
+    values = np.asarray(diagnostics.nis, dtype=float)
+    dofs = np.asarray(diagnostics.nis_dof, dtype=int)
+    if values.size == 0:
+        return {"nis_mean": None, "nis_dof": None, "nis_inside_fraction": None, "nis_below_95_fraction": None}
+    unique = np.unique(dofs)
+    return {
+        "nis_mean": _finite_mean(values),
+        "nis_dof": int(unique[0]) if len(unique) == 1 else None,
+        "nis_inside_fraction": _number(inside_fraction(values, dofs)),
+        "nis_below_95_fraction": _number(below_fraction(values, dofs)),
+    }
+
+
+def map_metrics(final_map: LandmarkMap | None, ground_truth: GroundTruth | None, mapping: dict[int, int]) -> Metrics:
+    """RMSE [m] of the final map's mapped landmarks against the truth, and their count."""
+    if final_map is None or ground_truth is None or ground_truth.landmarks is None:
+        return {"landmark_rmse_m": None, "landmarks_mapped": None}
+    errors, valid = landmark_errors(final_map, mapping, ground_truth)
+    count = int(np.sum(valid))
+    rmse = _rmse(np.linalg.norm(errors, axis=1)) if count else None
+    return {"landmark_rmse_m": rmse, "landmarks_mapped": count}
+
+
+def association_metrics(estimate: Estimate, ground_truth: GroundTruth | None) -> Metrics:
+    """Association precision/recall and loop-closure counts and precision."""
+    diagnostics = estimate.diagnostics
+    metrics: Metrics = {
+        "association_precision": None,
+        "association_recall": None,
+        "loop_closures": sum(1 for event in diagnostics.events if event.kind == "loop_closure"),
+        "loop_closure_precision": None,
+    }
+    if ground_truth is None or not ground_truth.scan_ids or len(diagnostics.assoc_t) == 0:
+        return metrics
+    score = score_associations(diagnostics, ground_truth.scan_ids)
+    metrics["association_precision"] = _number(score.precision)
+    metrics["association_recall"] = _number(score.recall)
+    mapping = majority_mapping(diagnostics.assoc_landmark_id, true_ids_of_records(diagnostics, ground_truth.scan_ids))
+    metrics["loop_closure_precision"] = _number(score_loop_closures(diagnostics.events, mapping).precision)
+    return metrics
+
+
+def cost_metrics(estimate: Estimate) -> Metrics:
+    """Step count and per-step wall-clock time."""
+    timing = estimate.timing
+    if timing is None or len(timing.seconds) == 0:
+        pose = estimate.causal.pose
+        steps = len(pose) if pose is not None else max((len(b.t) for b in estimate.causal.blocks.values()), default=0)
+        return {"steps": int(steps), "time_per_step_ms_median": None, "time_per_step_ms_p99": None, "time_total_s": None}
+    milliseconds = 1000.0 * np.asarray(timing.seconds, dtype=float)
+    return {
+        "steps": int(len(milliseconds)),
+        "time_per_step_ms_median": _number(np.median(milliseconds)),
+        "time_per_step_ms_p99": _number(np.percentile(milliseconds, 99)),
+        "time_total_s": _number(float(np.sum(timing.seconds)) + float(timing.finalize_seconds)),
+    }
+
+
+def compute_metrics(estimate: Estimate, sequence: Sequence) -> Metrics:
+    """The flat metrics dictionary of one run (see the module docstring for every key)."""
+    ground_truth = sequence.ground_truth
+    mapping: dict[int, int] = {}
+    if ground_truth is not None:
+        mapping = landmark_id_mapping(estimate.diagnostics, ground_truth)
+
+    metrics: Metrics = {}
+    metrics.update(accuracy_metrics(estimate.causal.pose, ground_truth))
+    metrics.update(consistency_metrics(estimate.causal, ground_truth, mapping, estimate.landmarks))
+    smoothed = estimate.smoothed
+    smoothed_accuracy = accuracy_metrics(smoothed.pose if smoothed is not None else None, ground_truth)
+    smoothed_consistency = consistency_metrics(smoothed, ground_truth, mapping)
+    metrics.update({smoothed_key(key): value for key, value in {**smoothed_accuracy, **smoothed_consistency}.items()})
+    metrics.update(nis_metrics(estimate))
+    metrics.update(map_metrics(estimate.landmarks, ground_truth, mapping))
+    metrics.update(association_metrics(estimate, ground_truth))
+    metrics.update(cost_metrics(estimate))
+    return metrics
