@@ -1,0 +1,350 @@
+"""Named, seeded simulation scenarios: ``sim:aghili-rover``, ``sim:guerreiro-loop``,
+``sim:circle``, ``sim:static``.
+
+``load_scenario(argument, seed, options)`` is the dataset loader the registry names.
+The world layout (terrain, landmark positions, per-landmark sigmas) comes from the
+``layout_seed`` option (default 0), the sensor noise from ``seed``: Monte Carlo runs over
+seeds see the same world with fresh noise. Independent generators per sensor mean that
+changing one sensor's option does not change another sensor's noise.
+
+Noise scale: ``noise_scale`` multiplies every drawn noise std (inertial white noise, bias
+walks, initial biases, landmark noise). The stated noise (``NoiseSpec``, scan
+covariances) is scaled alike, except at ``noise_scale=0``: the data are then noise-free
+but the stated noise stays nominal, so estimators keep invertible covariances (NEES is
+meaningless there).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from datasets.errors import InputError
+from datasets.options import describe_model, parse_options
+from datasets.sequence import NoiseSpec, Sequence
+from datasets.simulation.assembly import SimulatedData, build_sequence, sample_times
+from datasets.simulation.floor_plan import ring_corridor_building
+from datasets.simulation.imu import (
+    KITTI_IMU_METADATA, InertialNoise, kitti_imu_sigmas, simulate_imu, simulate_planar_gyro,
+)
+from datasets.simulation.landmarks import (
+    RangeBearingNoise, ScanSeries, anchor_order, field_of_view_mask, isotropic_observations, line_of_sight_mask,
+    range_bearing_observations, to_body_frame,
+)
+from datasets.simulation.trajectories import (
+    CircleMotion, PlanarPathMotion, RoundedPolylinePath, SinusoidalSpeed, StaticMotion, Terrain, TerrainViaPointLoop,
+)
+
+
+class _CommonOptions(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    duration_s: float | None = Field(None, gt=0, description="length of the sequence [s]; default: the scenario's own")
+    noise_scale: float = Field(1.0, ge=0, description="multiplies every noise std (0: noise-free data)")
+    ids: bool = Field(True, description="scans carry the true landmark ids (false: ids withheld)")
+    landmark_rate_hz: float = Field(10.0, gt=0, le=1000, description="landmark scan rate [Hz]")
+    range_m: float = Field(20.0, gt=0, description="maximum landmark range [m]")
+    fov_deg: float = Field(360.0, gt=0, le=360, description="horizontal field of view centred on body x [deg]")
+    layout_seed: int = Field(0, ge=0, description="seed of the world layout (landmarks, sigmas); noise uses --seed")
+
+
+class _SpatialOptions(_CommonOptions):
+    imu_rate_hz: float = Field(100.0, gt=0, le=10000, description="IMU rate [Hz]")
+    vertical_fov_deg: float = Field(60.0, gt=0, le=180, description="vertical field of view [deg]")
+    gyro_bias_sigma_rad_s: float = Field(1e-3, ge=0, description="std of the initial gyro bias [rad/s]")
+    accel_bias_sigma_m_s2: float = Field(0.05, ge=0, description="std of the initial accelerometer bias [m/s^2]")
+
+
+class AghiliRoverOptions(_SpatialOptions):
+    imu_rate_hz: float = Field(20.0, gt=0, le=10000, description="IMU rate [Hz] (paper: 20 Hz)")
+    speed_m_s: float = Field(1.0, gt=0, le=5, description="cruise speed along the via points [m/s]")
+    landmark_count: int = Field(60, ge=3, le=10000, description="landmarks scattered over the terrain")
+    landmark_sigma_min_m: float = Field(0.1, ge=0, description="smallest per-landmark noise sigma [m]")
+    landmark_sigma_max_m: float = Field(0.25, ge=0, description="largest per-landmark noise sigma [m]")
+
+
+class CircleOptions(_SpatialOptions):
+    duration_s: float | None = Field(60.0, gt=0, description="length of the sequence [s]")
+    radius_m: float = Field(10.0, gt=0, description="circle radius [m]")
+    speed_m_s: float = Field(2.0, gt=0, description="constant speed [m/s]")
+    landmark_count: int = Field(30, ge=3, le=10000, description="landmarks around the circle")
+    landmark_sigma_m: float = Field(0.1, ge=0, description="landmark noise sigma [m]")
+
+
+class StaticOptions(_SpatialOptions):
+    duration_s: float | None = Field(60.0, gt=0, description="length of the sequence [s]")
+    landmark_count: int = Field(20, ge=3, le=10000, description="landmarks around the vehicle")
+    landmark_sigma_m: float = Field(0.1, ge=0, description="landmark noise sigma [m]")
+
+
+class GuerreiroLoopOptions(_CommonOptions):
+    range_m: float = Field(30.0, gt=0, description="laser range [m] (Hokuyo UTM-30LX: 30 m)")
+    fov_deg: float = Field(270.0, gt=0, le=360, description="laser field of view [deg] (UTM-30LX: 270)")
+    gyro_rate_hz: float = Field(10.0, gt=0, le=10000, description="rate gyro rate [Hz] (paper: synchronised with the laser)")
+    mean_speed_m_s: float = Field(0.4, gt=0, le=3, description="average speed [m/s] (paper: 0.4)")
+    gyro_noise_density: float = Field(
+        float(np.deg2rad(0.1)), ge=0, description="gyro white noise [rad/s/sqrt(Hz)] (MEMS grade, 0.1 deg/s/sqrt(Hz))"
+    )
+    gyro_bias_walk: float = Field(
+        float(np.deg2rad(5.7e-5)), ge=0, description="gyro bias random walk [rad/s^2/sqrt(Hz)] (paper: 5.7e-5 deg/s)"
+    )
+    gyro_bias_sigma_rad_s: float = Field(5e-3, ge=0, description="std of the initial gyro bias [rad/s]")
+
+
+def _noise_factors(noise_scale: float) -> tuple[float, float]:
+    """(scale of drawn noise, scale of stated noise): stated stays nominal at 0."""
+    return noise_scale, (noise_scale if noise_scale > 0 else 1.0)
+
+
+def _generators(seed: int) -> dict[str, np.random.Generator]:
+    """Independent generators per purpose, all from ``seed``."""
+    children = np.random.SeedSequence(seed).spawn(3)
+    return {name: np.random.default_rng(child) for name, child in zip(("inertial", "landmarks", "spare"), children)}
+
+
+def _metadata(scenario: str, seed: int, options: BaseModel, **extra: object) -> dict[str, object]:
+    return {"source": "simulator", "scenario": scenario, "seed": seed, "options": options.model_dump(mode="json"), **extra}
+
+
+def _kitti_inertial_noise(options: _SpatialOptions) -> InertialNoise:
+    """KITTI-equivalent IMU densities from gtsam's Data folder (the paper states none)."""
+    sigmas = kitti_imu_sigmas()
+    return InertialNoise(
+        gyro_noise_density=sigmas["GyroscopeSigma"],
+        accel_noise_density=sigmas["AccelerometerSigma"],
+        gyro_bias_walk=sigmas["GyroscopeBiasSigma"],
+        accel_bias_walk=sigmas["AccelerometerBiasSigma"],
+        gyro_bias_sigma_rad_s=options.gyro_bias_sigma_rad_s,
+        accel_bias_sigma_m_s2=options.accel_bias_sigma_m_s2,
+    )
+
+
+def _noise_spec(noise: InertialNoise, landmark_sigma_m: float, rates: dict[str, float], planar: bool) -> NoiseSpec:
+    return NoiseSpec(
+        gyro_noise_density=noise.gyro_noise_density,
+        accel_noise_density=None if planar else noise.accel_noise_density,
+        gyro_bias_walk=noise.gyro_bias_walk,
+        accel_bias_walk=None if planar else noise.accel_bias_walk,
+        gyro_bias_sigma_rad_s=noise.gyro_bias_sigma_rad_s,
+        accel_bias_sigma_m_s2=None if planar else noise.accel_bias_sigma_m_s2,
+        landmark_sigma_m=landmark_sigma_m,
+        rate_hz=rates,
+    )
+
+
+def _spatial_scans(
+    motion, times: np.ndarray, landmarks: np.ndarray, sigmas: np.ndarray, options: _SpatialOptions,
+    rng: np.random.Generator,
+) -> ScanSeries:
+    """3-D scans: body-frame positions with isotropic per-landmark noise."""
+    drawn, stated = _noise_factors(options.noise_scale)
+    kinematics = motion.kinematics(times)
+    points, covariances, ids = [], [], []
+    for index in range(len(times)):
+        body = to_body_frame(kinematics.rotation[index], kinematics.position[index], landmarks)
+        visible = np.flatnonzero(field_of_view_mask(body, options.range_m, options.fov_deg, options.vertical_fov_deg))
+        measured, covariance = isotropic_observations(body[visible], sigmas[visible], drawn, stated, rng)
+        points.append(measured)
+        covariances.append(covariance)
+        ids.append(visible.astype(int))
+    return ScanSeries(t=times, points=tuple(points), covariances=tuple(covariances), ids=tuple(ids))
+
+
+def _simulate_spatial(
+    scenario: str, motion, duration_s: float, landmarks: np.ndarray, sigmas: np.ndarray,
+    options: _SpatialOptions, seed: int, **extra_metadata: object,
+) -> Sequence:
+    generators = _generators(seed)
+    drawn, stated = _noise_factors(options.noise_scale)
+    nominal = _kitti_inertial_noise(options)
+    inertial_times = sample_times(duration_s, options.imu_rate_hz)
+    kinematics = motion.kinematics(inertial_times)
+    inertial = simulate_imu(kinematics, options.imu_rate_hz, nominal.scaled(drawn), generators["inertial"])
+    scan_times = sample_times(duration_s, options.landmark_rate_hz)
+    scans = _spatial_scans(motion, scan_times, landmarks, sigmas, options, generators["landmarks"])
+    start = motion.kinematics(np.zeros(1))
+    start_body = to_body_frame(start.rotation[0], start.position[0], landmarks)
+    visible_at_start = field_of_view_mask(start_body, options.range_m, options.fov_deg, options.vertical_fov_deg)
+    data = SimulatedData(
+        kinematics=kinematics,
+        inertial=inertial,
+        scans=scans,
+        landmark_ids=np.arange(len(landmarks)),
+        landmark_positions=landmarks,
+        anchor_order=anchor_order(landmarks, visible_at_start, start.position[0]),
+    )
+    rates = {"imu": options.imu_rate_hz, "landmarks": options.landmark_rate_hz}
+    noise = _noise_spec(nominal.scaled(stated), float(np.mean(sigmas)) * stated, rates, planar=False)
+    metadata = _metadata(scenario, seed, options, imu_noise_source=f"gtsam Data/{KITTI_IMU_METADATA}", **extra_metadata)
+    return build_sequence(f"sim:{scenario}", data, noise, options.ids, metadata)
+
+
+# The Aghili case study world: a 30 x 60 m terrain (x across, y along) and seven via points.
+ROVER_VIA_POINTS_XY = np.array([[3.0, 3.0], [27.0, 5.0], [28.0, 24.0], [14.0, 32.0], [27.0, 52.0], [10.0, 58.0], [2.0, 31.0]])
+ROVER_TERRAIN = Terrain(
+    amplitudes_m=np.array([1.5, 0.7, 0.3]),
+    wave_vectors=2 * np.pi * np.array([[1 / 60, 1 / 90], [-1 / 40, 1 / 45], [1 / 25, 1 / 20]]),
+    phases_rad=np.array([0.4, 1.3, 2.2]),
+)
+TERRAIN_SIZE_M = (30.0, 60.0)
+
+
+def aghili_rover(seed: int, options: AghiliRoverOptions) -> Sequence:
+    """Aghili, "Lidar SLAM for Autonomous Driving Vehicles", section 5 case study: a rover
+    at walking pace drives a closed loop through seven via points over a 30 x 60 m terrain
+    with gentle slopes (heights within a few metres; pitch and roll follow the slope); IMU
+    at 20 Hz with KITTI-equivalent sigmas (gtsam Data, the paper states none); landmarks
+    scattered over the terrain (0.1..3 m above ground), observed as 3-D body-frame positions
+    within range and field of view, each with its own sigma uniform in [0.1, 0.25] m (the
+    paper's 0.1 < sigma_pi < 0.25), scan covariance sigma_i^2 I. Default duration: one lap.
+    """
+    if options.landmark_sigma_max_m < options.landmark_sigma_min_m:
+        raise InputError("sim:aghili-rover: landmark_sigma_max_m must be >= landmark_sigma_min_m")
+    motion = TerrainViaPointLoop(ROVER_VIA_POINTS_XY, options.speed_m_s, ROVER_TERRAIN)
+    layout = np.random.default_rng([options.layout_seed, 1])
+    width, length = TERRAIN_SIZE_M
+    xy = layout.uniform([0.0, 0.0], [width, length], size=(options.landmark_count, 2))
+    heights = ROVER_TERRAIN.height(xy) + layout.uniform(0.1, 3.0, size=options.landmark_count)
+    sigmas = layout.uniform(options.landmark_sigma_min_m, options.landmark_sigma_max_m, size=options.landmark_count)
+    duration = options.duration_s if options.duration_s is not None else motion.period_s
+    return _simulate_spatial(
+        "aghili-rover", motion, duration, np.column_stack([xy, heights]), sigmas, options, seed,
+        landmark_sigmas_m=[float(value) for value in sigmas], lap_duration_s=motion.period_s,
+    )
+
+
+def circle(seed: int, options: CircleOptions) -> Sequence:
+    """A level constant-speed circle (radius 10 m, 2 m/s) with landmarks scattered 4..18 m
+    from the centre, 1 m below to 3 m above the path plane; IMU with KITTI-equivalent sigmas."""
+    motion = CircleMotion(np.zeros(3), options.radius_m, options.speed_m_s)
+    layout = np.random.default_rng([options.layout_seed, 2])
+    angles = layout.uniform(0, 2 * np.pi, options.landmark_count)
+    radii = options.radius_m * layout.uniform(0.4, 1.8, options.landmark_count)
+    landmarks = np.column_stack([radii * np.cos(angles), radii * np.sin(angles), layout.uniform(-1, 3, options.landmark_count)])
+    sigmas = np.full(options.landmark_count, options.landmark_sigma_m)
+    return _simulate_spatial("circle", motion, float(options.duration_s), landmarks, sigmas, options, seed)
+
+
+def static(seed: int, options: StaticOptions) -> Sequence:
+    """No motion: the vehicle rests at the origin, slightly tilted (yaw 30, pitch -3,
+    roll 2 deg), with landmarks 3..15 m around it; IMU with KITTI-equivalent sigmas."""
+    motion = StaticMotion(np.zeros(3), np.deg2rad(30.0), np.deg2rad(-3.0), np.deg2rad(2.0))
+    layout = np.random.default_rng([options.layout_seed, 3])
+    angles = layout.uniform(0, 2 * np.pi, options.landmark_count)
+    radii = layout.uniform(3.0, 15.0, options.landmark_count)
+    landmarks = np.column_stack([radii * np.cos(angles), radii * np.sin(angles), layout.uniform(-1, 3, options.landmark_count)])
+    sigmas = np.full(options.landmark_count, options.landmark_sigma_m)
+    return _simulate_spatial("static", motion, float(options.duration_s), landmarks, sigmas, options, seed)
+
+
+LOOP_PATH_LENGTH_M = 60.0
+LOOP_TURN_LENGTH_M = 3.0
+
+
+def guerreiro_loop_motion(mean_speed_m_s: float) -> PlanarPathMotion:
+    """The loop of Guerreiro et al. (2013) section V: start in the middle of the bottom
+    corridor heading east, go counterclockwise round the ring corridor and on past the start
+    until the path is 60 m long; corners rounded; speed 0.4 m/s on average, varying +-30 %
+    in five smooth cycles."""
+    plan = ring_corridor_building()
+    (x0, y0), (x1, _), (_, y1), _ = plan.corridor_centerline
+    start = np.array([(x0 + x1) / 2, y0])
+    vertices = [start, [x1, y0], [x1, y1], [x0, y1], [x0, y0]]
+    lap = RoundedPolylinePath(np.array(vertices + [start]), LOOP_TURN_LENGTH_M)
+    beyond = LOOP_PATH_LENGTH_M - lap.length_m
+    path = RoundedPolylinePath(np.array(vertices + [start + [beyond, 0.0]]), LOOP_TURN_LENGTH_M)
+    duration = path.length_m / mean_speed_m_s
+    return PlanarPathMotion(path, SinusoidalSpeed(mean_speed_m_s, 0.3, 5, duration))
+
+
+def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
+    """Guerreiro, Batista, Silvestre, Oliveira, "Globally Asymptotically Stable Sensor-Based
+    SLAM", section V: a planar vehicle flies about 60 m round a ring corridor at 0.4 m/s on
+    average and passes its start again, so early landmarks are seen again (loop closable).
+    Landmarks are the wall corners (building corners and door niches). A laser (range 30 m,
+    270 deg field of view, 10 Hz by default) sees a corner only with line of sight (walls
+    occlude). Noise as the paper: sigma_alpha = 3.75 deg, sigma_rho = 0.15 m up to 10 m,
+    0.25 m beyond, drawn in range/bearing; covariance first-order J diag J^T. A rate gyro at
+    the laser rate with bias (walk 5.7e-5 deg/s/sqrt(s) as the paper's sigma_br) and MEMS
+    white noise. No odometry.
+    """
+    motion = guerreiro_loop_motion(options.mean_speed_m_s)
+    full = motion.duration_s
+    duration = options.duration_s if options.duration_s is not None else full
+    if duration > full + 1e-9:
+        raise InputError(f"sim:guerreiro-loop: duration_s={duration} exceeds the path's {full:.1f} s")
+    plan = ring_corridor_building()
+    generators = _generators(seed)
+    drawn, stated = _noise_factors(options.noise_scale)
+    nominal = InertialNoise(
+        gyro_noise_density=options.gyro_noise_density, accel_noise_density=0.0,
+        gyro_bias_walk=options.gyro_bias_walk, accel_bias_walk=0.0,
+        gyro_bias_sigma_rad_s=options.gyro_bias_sigma_rad_s, accel_bias_sigma_m_s2=0.0,
+    )
+    gyro_times = sample_times(duration, options.gyro_rate_hz)
+    kinematics = motion.kinematics(gyro_times)
+    inertial = simulate_planar_gyro(kinematics, options.gyro_rate_hz, nominal.scaled(drawn), generators["inertial"])
+
+    laser = RangeBearingNoise()
+    scan_times = sample_times(duration, options.landmark_rate_hz)
+    scan_kinematics = motion.kinematics(scan_times)
+    rng = generators["landmarks"]
+    points, covariances, ids = [], [], []
+    visible_at_start = None
+    for index in range(len(scan_times)):
+        position, rotation = scan_kinematics.position[index], scan_kinematics.rotation[index]
+        body = to_body_frame(rotation, position, plan.corners)
+        mask = field_of_view_mask(body, options.range_m, options.fov_deg)
+        mask &= line_of_sight_mask(position, plan.corners, plan.walls)
+        if index == 0:
+            visible_at_start = mask
+        visible = np.flatnonzero(mask)
+        measured, covariance = range_bearing_observations(body[visible], laser, drawn, stated, rng)
+        points.append(measured)
+        covariances.append(covariance)
+        ids.append(visible.astype(int))
+    scans = ScanSeries(t=scan_times, points=tuple(points), covariances=tuple(covariances), ids=tuple(ids))
+    data = SimulatedData(
+        kinematics=kinematics,
+        inertial=inertial,
+        scans=scans,
+        landmark_ids=np.arange(len(plan.corners)),
+        landmark_positions=plan.corners,
+        anchor_order=anchor_order(plan.corners, visible_at_start, scan_kinematics.position[0]),
+    )
+    rates = {"gyro": options.gyro_rate_hz, "landmarks": options.landmark_rate_hz}
+    noise = _noise_spec(nominal.scaled(stated), laser.near_range_sigma_m * stated, rates, planar=True)
+    metadata = _metadata(
+        "guerreiro-loop", seed, options,
+        path_length_m=motion.path.length_m, laser_bearing_sigma_deg=3.75,
+        laser_range_sigma_m={"up_to_10_m": 0.15, "beyond_10_m": 0.25},
+    )
+    return build_sequence("sim:guerreiro-loop", data, noise, options.ids, metadata)
+
+
+_SCENARIOS: dict[str, tuple[type[BaseModel], Callable[[int, BaseModel], Sequence], str]] = {
+    "aghili-rover": (AghiliRoverOptions, aghili_rover, "Aghili sec. 5: 3-D rover, 7 via points, 30x60 m slopes, IMU 20 Hz, ~3 min"),
+    "guerreiro-loop": (GuerreiroLoopOptions, guerreiro_loop, "Guerreiro sec. V: 2-D 60 m corridor loop, 0.4 m/s, wall corners, laser with line of sight, rate gyro"),
+    "circle": (CircleOptions, circle, "3-D level circle, r 10 m at 2 m/s, IMU 100 Hz + landmarks, 60 s"),
+    "static": (StaticOptions, static, "3-D vehicle at rest (tilted), IMU 100 Hz + landmarks, 60 s"),
+}
+
+
+def load_scenario(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
+    """Simulate scenario ``argument`` with noise ``seed`` and ``--data`` options."""
+    if argument not in _SCENARIOS:
+        raise InputError(f"unknown simulation scenario '{argument}' (known: {', '.join(_SCENARIOS)})")
+    model, simulate, _ = _SCENARIOS[argument]
+    parsed = parse_options(model, options, f"sim:{argument} --data")
+    return simulate(int(seed), parsed)
+
+
+def describe_scenarios() -> list[str]:
+    """Lines for ``workbench list --verbose``: each scenario, then its options."""
+    lines = []
+    for name, (model, _, summary) in _SCENARIOS.items():
+        lines.append(f"sim:{name}: {summary}")
+        lines += [f"    {line}" for line in describe_model(model)]
+    return lines
