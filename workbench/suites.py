@@ -1,0 +1,234 @@
+"""Benchmark suites: which datasets (with their ``--data`` options) meet which estimators
+(with their ``--set`` options), and how many Monte Carlo runs by default.
+
+A suite names what it *wants*; ``available_parts`` keeps what the registry has today and
+returns a note for everything else, so a suite written for every estimator still runs while
+some are missing (the note says which). Whether an estimator can run on a dataset (sensors,
+dimension) is decided later, per pair, by ``workbench.sweep`` with ``runner.is_compatible``.
+
+Suites:
+    ``tiny``         tests: seconds. Two very short simulated scenarios, dead reckoning and
+                     one fast filter.
+    ``quick``        the README's default (``workbench bench``): the simulated scenarios,
+                     shortened, plus the real data inside the gtsam wheel (Victoria Park,
+                     KITTI IMU/GPS), shortened through their ``--data`` options, every
+                     estimator; under 2 minutes with 3 runs on 2 cores.
+    ``paper``        the two papers' scenarios at full length, Victoria Park, KITTI IMU/GPS
+                     and the synthetic lidar bag, every estimator.
+    ``consistency``  Monte Carlo NEES: the simulated scenarios, 50 runs.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from datasets.errors import InputError
+from workbench.registry import ESTIMATORS, dataset_entry
+
+Options = tuple[tuple[str, str], ...]
+"""``key=value`` pairs in a fixed order (hashable, picklable, deterministic)."""
+
+DATA_FOLDER_PLACEHOLDER = "{data}"
+"""Stands for ``OUT/data`` in a dataset name (files a suite generates before the sweep)."""
+
+
+def slug(text: str) -> str:
+    """A file-name-safe form of ``text``: ``'sim:circle (ids=false)'`` -> ``'sim-circle-ids-false'``."""
+    return re.sub(r"[^A-Za-z0-9._]+", "-", text).strip("-") or "unnamed"
+
+
+def format_options(options: Options) -> str:
+    """``(('a', '1'), ('b', 'x'))`` -> ``'a=1 b=x'``."""
+    return " ".join(f"{key}={value}" for key, value in options)
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """One dataset of a suite.
+
+    Attributes:
+        name: dataset name as ``workbench run`` takes it (``sim:circle``, ``victoria-park``);
+            ``{data}`` stands for the sweep's ``OUT/data`` folder.
+        options: ``--data`` options.
+        label: the name in tables, plots and folder names (default: ``name``); two specs of
+            one dataset with different options need different labels.
+        seeded: False for a recording whose content does not depend on the seed: it is run
+            once (seed 0) whatever ``--runs`` says, since more runs would only repeat it.
+        generate: ``"module:function"`` writing the file the dataset reads, called as
+            ``function(path: Path)`` with the path the name points to, before the sweep,
+            when that file does not exist yet (the synthetic lidar bag).
+    """
+
+    name: str
+    options: Options = ()
+    label: str = ""
+    seeded: bool = True
+    generate: str | None = None
+
+    @property
+    def title(self) -> str:
+        return self.label or self.name
+
+    @property
+    def folder_name(self) -> str:
+        return slug(self.title)
+
+    def resolved_name(self, data_folder: Path) -> str:
+        """The name with ``{data}`` replaced by ``data_folder``."""
+        return self.name.replace(DATA_FOLDER_PLACEHOLDER, str(data_folder))
+
+
+@dataclass(frozen=True)
+class EstimatorSpec:
+    """One estimator of a suite: registered name, ``--set`` options, label (default: name)."""
+
+    name: str
+    overrides: Options = ()
+    label: str = ""
+
+    @property
+    def title(self) -> str:
+        return self.label or self.name
+
+    @property
+    def folder_name(self) -> str:
+        return slug(self.title)
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A named set of datasets and estimators, and the default number of runs per cell."""
+
+    name: str
+    description: str
+    datasets: tuple[DatasetSpec, ...]
+    estimators: tuple[EstimatorSpec, ...]
+    default_runs: int = 3
+
+
+# Every estimator the workbench is meant to have, in table order: the lower bound first,
+# then the filters, then the smoothers (the reference).
+ALL_ESTIMATORS: tuple[EstimatorSpec, ...] = (
+    EstimatorSpec("dead-reckoning"),
+    EstimatorSpec("aghili"),
+    EstimatorSpec("sensor-based"),
+    EstimatorSpec("ekf-slam"),
+    EstimatorSpec("smoother-isam2"),
+    EstimatorSpec("smoother-fixed-lag"),
+    EstimatorSpec("smoother-batch"),
+)
+
+
+def write_corridor_bag(path: Path) -> None:
+    """The synthetic lidar corridor as a ROS 1 bag at ``path`` (seed 0, default options).
+
+    The bag is a fixed recording: every run reads the same file (``seeded=False``)."""
+    from datasets.synthetic_lidar import write_lidar_bag
+
+    write_lidar_bag(Path(path), 0, "ros1", {})
+
+
+SUITES: dict[str, Suite] = {
+    suite.name: suite
+    for suite in (
+        Suite(
+            "tiny",
+            "for tests: two very short simulated scenarios, dead reckoning and one fast filter (seconds)",
+            datasets=(
+                DatasetSpec("sim:circle", (("duration_s", "4"),)),
+                DatasetSpec("sim:guerreiro-loop", (("duration_s", "8"),)),
+            ),
+            estimators=(EstimatorSpec("dead-reckoning"), EstimatorSpec("ekf-slam")),
+            default_runs=2,
+        ),
+        Suite(
+            "quick",
+            "the default: shortened simulated scenarios and the gtsam wheel's real data, every estimator (< 2 min, 3 runs, 2 cores)",
+            datasets=(
+                DatasetSpec("sim:aghili-rover", (("duration_s", "40"),)),
+                DatasetSpec("sim:guerreiro-loop", (("duration_s", "60"),)),
+                DatasetSpec("victoria-park", (("max_steps", "600"),), seeded=False),
+                DatasetSpec("kitti-imu-gps", (("duration_s", "60"),), seeded=False),
+            ),
+            estimators=ALL_ESTIMATORS,
+            default_runs=3,
+        ),
+        Suite(
+            "paper",
+            "the papers' scenarios at full length, Victoria Park, KITTI IMU/GPS, the synthetic lidar bag; every estimator",
+            datasets=(
+                DatasetSpec("sim:aghili-rover"),
+                DatasetSpec("sim:guerreiro-loop", (("ids", "false"),), label="sim:guerreiro-loop (ids=false)"),
+                DatasetSpec("victoria-park", (("ids", "false"),), label="victoria-park (ids=false)", seeded=False),
+                DatasetSpec("kitti-imu-gps", seeded=False),
+                DatasetSpec(
+                    "bag:{data}/lidar-corridor.bag",
+                    label="bag:lidar-corridor",
+                    seeded=False,
+                    generate="workbench.suites:write_corridor_bag",
+                ),
+            ),
+            estimators=ALL_ESTIMATORS,
+            default_runs=3,
+        ),
+        Suite(
+            "consistency",
+            "Monte Carlo NEES on the simulated scenarios (50 runs)",
+            datasets=(
+                DatasetSpec("sim:aghili-rover"),
+                DatasetSpec("sim:guerreiro-loop"),
+                DatasetSpec("sim:circle"),
+            ),
+            estimators=ALL_ESTIMATORS,
+            default_runs=50,
+        ),
+    )
+}
+
+DEFAULT_SUITE = "quick"
+
+
+def get_suite(name: str) -> Suite:
+    """The suite called ``name``; ``InputError`` listing the known ones otherwise."""
+    try:
+        return SUITES[name]
+    except KeyError:
+        raise InputError(f"unknown suite '{name}' (known: {', '.join(SUITES)})") from None
+
+
+def _resolve_callable(target: str) -> Callable[..., object]:
+    import importlib
+
+    module_name, _, attribute = target.partition(":")
+    return getattr(importlib.import_module(module_name), attribute)
+
+
+def prepare_dataset(spec: DatasetSpec, data_folder: Path) -> None:
+    """Generate the file a dataset reads (``spec.generate``) when it is not there yet."""
+    if spec.generate is None:
+        return
+    _, _, argument = spec.resolved_name(data_folder).partition(":")
+    path = Path(argument)
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        _resolve_callable(spec.generate)(path)
+
+
+def available_parts(suite: Suite) -> tuple[tuple[DatasetSpec, ...], tuple[EstimatorSpec, ...], tuple[str, ...]]:
+    """The suite's datasets and estimators that are registered today, and a note for each
+    one that is not (skipped, not an error: other parts of the workbench may add it later)."""
+    registered = {entry.name for entry in ESTIMATORS}
+    estimators = tuple(spec for spec in suite.estimators if spec.name in registered)
+    notes = [f"estimator '{spec.name}' is not registered: skipped" for spec in suite.estimators if spec.name not in registered]
+    datasets = []
+    for spec in suite.datasets:
+        try:
+            dataset_entry(spec.name)
+        except InputError as error:
+            notes.append(f"dataset '{spec.title}' skipped: {error}")
+            continue
+        datasets.append(spec)
+    return tuple(datasets), estimators, tuple(notes)
