@@ -56,8 +56,15 @@ def nees(errors: np.ndarray, covariances: np.ndarray) -> np.ndarray:
     covariances = np.asarray(covariances, dtype=float)
     result = np.full(len(errors), np.nan)
     finite = np.all(np.isfinite(covariances), axis=(1, 2)) & np.all(np.isfinite(errors), axis=1)
-    for index in np.flatnonzero(finite):
-        # Per step so that one singular covariance spoils only its own value.
+    rows = np.flatnonzero(finite)
+    try:
+        solved = np.linalg.solve(covariances[rows], errors[rows][:, :, None])[:, :, 0]
+        result[rows] = np.einsum("ni,ni->n", errors[rows], solved)
+        return result
+    except np.linalg.LinAlgError:
+        pass
+    for index in rows:
+        # Step by step, so that one singular covariance spoils only its own value.
         try:
             result[index] = float(errors[index] @ np.linalg.solve(covariances[index], errors[index]))
         except np.linalg.LinAlgError:

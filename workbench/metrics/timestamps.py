@@ -184,5 +184,8 @@ def _slerp_pairs(quat_a: np.ndarray, quat_b: np.ndarray, weight: np.ndarray) -> 
     rot_b = rotation_from_quat_wxyz(quat_b)
     # a * Exp(w * Log(a^-1 b)) is slerp along the shorter arc, vectorised over rows.
     relative = (rot_a.inv() * rot_b).as_rotvec()
-    result = rot_a * Rotation.from_rotvec(weight[:, None] * relative)
-    return quat_wxyz_from_rotation(result)
+    result = quat_wxyz_from_rotation(rot_a * Rotation.from_rotvec(weight[:, None] * relative))
+    # Exact samples are returned bit for bit (no round trip through scipy).
+    at_start = weight == 0.0
+    result[at_start] = quat_a[at_start]
+    return result
