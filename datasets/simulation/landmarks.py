@@ -141,7 +141,8 @@ def range_bearing_covariance(
         [np.stack([cos, -ranges_m * sin], axis=-1), np.stack([sin, ranges_m * cos], axis=-1)], axis=-2
     )  # (k, 2, 2): columns d/drho, d/dalpha
     variances = np.stack([range_sigma_m**2, np.full_like(ranges_m, bearing_sigma_rad**2)], axis=-1)
-    return np.einsum("kij,kj,klj->kil", jacobian, variances, jacobian)
+    covariances = np.einsum("kij,kj,klj->kil", jacobian, variances, jacobian)
+    return 0.5 * (covariances + np.swapaxes(covariances, 1, 2))  # exactly symmetric
 
 
 def range_bearing_observations(

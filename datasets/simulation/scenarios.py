@@ -182,7 +182,7 @@ def _simulate_spatial(
 
 
 # The Aghili case study world: a 30 x 60 m terrain (x across, y along) and seven via points.
-ROVER_VIA_POINTS_XY = np.array([[3.0, 3.0], [27.0, 5.0], [28.0, 24.0], [14.0, 32.0], [27.0, 52.0], [10.0, 58.0], [2.0, 31.0]])
+ROVER_VIA_POINTS_XY = np.array([[4.0, 4.0], [25.0, 6.0], [26.0, 24.0], [14.0, 32.0], [25.0, 51.0], [10.0, 56.0], [4.0, 31.0]])
 ROVER_TERRAIN = Terrain(
     amplitudes_m=np.array([1.5, 0.7, 0.3]),
     wave_vectors=2 * np.pi * np.array([[1 / 60, 1 / 90], [-1 / 40, 1 / 45], [1 / 25, 1 / 20]]),
