@@ -1,0 +1,115 @@
+"""Incremental solvers behind the smoother: iSAM2, and GTSAM's fixed-lag smoother.
+
+Both take (new factors, new values, key times) per keyframe and answer estimates and
+marginal covariances. GTSAM errors during an update (an indeterminate system, a missing
+variable) become ``InputError`` naming the time, never an opaque GTSAM traceback.
+
+Fixed lag: gtsam 4.3's wheel exposes both ``gtsam.BatchFixedLagSmoother`` and
+``gtsam.IncrementalFixedLagSmoother``; only the incremental one offers
+``marginalCovariance``, which the causal covariances need, so it is the one used. It
+marginalises the keys whose time is strictly earlier than ``latest time - lag``
+(checked in ``tests/test_smoother_modes.py``).
+"""
+
+from __future__ import annotations
+
+import time
+
+import gtsam
+import numpy as np
+
+from datasets.errors import InputError
+
+
+def _explain(error: RuntimeError, t: float, context: str) -> InputError:
+    text = str(error).strip().splitlines()
+    first = text[0] if text else type(error).__name__
+    if "Indeterminant" in str(error) or "indeterminant" in str(error):
+        return InputError(
+            f"{context} at t={t:.6f} s: the system is indeterminate (some state is not constrained: "
+            f"no prior, anchors, GPS or enough landmarks reach it) -- GTSAM: {first}"
+        )
+    return InputError(f"{context} at t={t:.6f} s failed inside GTSAM: {first}")
+
+
+def isam2_params(relinearize_threshold: float, relinearize_skip: int) -> gtsam.ISAM2Params:
+    params = gtsam.ISAM2Params()
+    params.setRelinearizeThreshold(relinearize_threshold)
+    params.relinearizeSkip = relinearize_skip
+    params.setFactorization("CHOLESKY")
+    return params
+
+
+class Isam2Backend:
+    """iSAM2 over the whole history."""
+
+    def __init__(self, relinearize_threshold: float, relinearize_skip: int, extra_iterations: int) -> None:
+        self.isam = gtsam.ISAM2(isam2_params(relinearize_threshold, relinearize_skip))
+        self.extra_iterations = extra_iterations
+        self.gtsam_seconds = 0.0
+
+    def update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, key_times: dict[int, float], t: float) -> float:
+        """Add factors and values; returns the seconds spent inside GTSAM."""
+        start = time.perf_counter()
+        try:
+            self.isam.update(graph, values)
+            for _ in range(self.extra_iterations):
+                self.isam.update()
+        except RuntimeError as error:
+            raise _explain(error, t, "iSAM2 update") from None
+        elapsed = time.perf_counter() - start
+        self.gtsam_seconds += elapsed
+        return elapsed
+
+    def estimate(self) -> gtsam.Values:
+        return self.isam.calculateEstimate()
+
+    def marginal_covariance(self, key: int) -> np.ndarray:
+        return self.isam.marginalCovariance(key)
+
+    def leaving(self, t_new: float) -> list[int]:
+        """Keys about to be marginalised by an update at ``t_new``: none for iSAM2."""
+        return []
+
+    def contains(self, key: int) -> bool:
+        return self.isam.valueExists(key)
+
+
+class FixedLagBackend:
+    """``gtsam.IncrementalFixedLagSmoother`` with a lag in seconds."""
+
+    def __init__(self, lag_s: float, relinearize_threshold: float, relinearize_skip: int) -> None:
+        self.lag_s = lag_s
+        self.smoother = gtsam.IncrementalFixedLagSmoother(lag_s, isam2_params(relinearize_threshold, relinearize_skip))
+        self.key_times: dict[int, float] = {}
+        self.gtsam_seconds = 0.0
+
+    def update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, key_times: dict[int, float], t: float) -> float:
+        stamps = gtsam.FixedLagSmootherKeyTimestampMap()
+        for key, stamp in key_times.items():
+            stamps.insert((key, stamp))
+        start = time.perf_counter()
+        try:
+            self.smoother.update(graph, values, stamps)
+        except RuntimeError as error:
+            raise _explain(error, t, "fixed-lag update") from None
+        elapsed = time.perf_counter() - start
+        self.gtsam_seconds += elapsed
+        self.key_times.update(key_times)
+        latest = max(self.key_times.values(), default=t)
+        for key in [key for key, stamp in self.key_times.items() if stamp < latest - self.lag_s]:
+            del self.key_times[key]
+        return elapsed
+
+    def estimate(self) -> gtsam.Values:
+        return self.smoother.calculateEstimate()
+
+    def marginal_covariance(self, key: int) -> np.ndarray:
+        return self.smoother.marginalCovariance(key)
+
+    def leaving(self, t_new: float) -> list[int]:
+        """Keys an update whose latest time is ``t_new`` will marginalise (time < t_new - lag)."""
+        return [key for key, stamp in self.key_times.items() if stamp < t_new - self.lag_s]
+
+    def contains(self, key: int) -> bool:
+        return key in self.key_times

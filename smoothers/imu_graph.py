@@ -1,0 +1,289 @@
+"""IMU preintegration between keyframes: ``CombinedImuFactor`` (bias random walk inside).
+
+Conventions (DESIGN.md, and GTSAM's own):
+- noise densities are continuous-time; GTSAM's ``set*Covariance`` take exactly the squared
+  continuous densities and divide by ``dt`` internally, so no conversion is applied here;
+- measured = true + bias (GTSAM's ``ConstantBias``: ``correctAccelerometer(a) = a - b_a``);
+- gravity is an acceleration (0, 0, -g) in a z-up world: ``MakeSharedU(g)``;
+- ``ConstantBias.vector()`` is ordered [accelerometer, gyroscope].
+
+Sample timing: a sample at ``t_i`` is held (zero-order hold) over ``[t_i, t_{i+1})``. A
+keyframe that falls between two samples splits that interval, so every keyframe sits at the
+exact time of its measurement.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+
+from gtsam.symbol_shorthand import B, V, X
+
+from datasets.errors import InputError
+from datasets.estimate import EstimateRecorder
+from datasets.measurements import ImuSample
+from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
+from datasets.sequence import InitialState, NoiseSpec
+from datasets.state import BlockName, Frame
+from smoothers.covariances import MarginalSource, bias_covariances, pose_covariance, vector_covariance
+from smoothers.initialization import InitialPriors
+
+
+@dataclass(frozen=True)
+class ImuNoise:
+    """Continuous-time IMU noise used by the preintegration (GTSAM's parameters).
+
+    Attributes:
+        gyro_noise_density: [rad/s/sqrt(Hz)].
+        accel_noise_density: [m/s^2/sqrt(Hz)].
+        gyro_bias_walk: [rad/s^2/sqrt(Hz)].
+        accel_bias_walk: [m/s^3/sqrt(Hz)].
+        integration_sigma: position integration error density (GTSAM's integration
+            covariance; a small regulariser) [m/s/sqrt(Hz)].
+    """
+
+    gyro_noise_density: float
+    accel_noise_density: float
+    gyro_bias_walk: float
+    accel_bias_walk: float
+    integration_sigma: float = 1e-4
+
+    @staticmethod
+    def from_spec(spec: NoiseSpec, where: str) -> "ImuNoise":
+        """Take the densities from a ``NoiseSpec``; ``InputError`` naming a missing one."""
+        values = {
+            "gyro_noise_density": spec.gyro_noise_density,
+            "accel_noise_density": spec.accel_noise_density,
+            "gyro_bias_walk": spec.gyro_bias_walk,
+            "accel_bias_walk": spec.accel_bias_walk,
+        }
+        missing = [name for name, value in values.items() if value is None or not np.isfinite(value) or value <= 0]
+        if missing:
+            raise InputError(f"{where}: the smoother needs positive IMU noise densities; missing or invalid: {', '.join(missing)}")
+        return ImuNoise(**{name: float(value) for name, value in values.items()})  # type: ignore[arg-type]
+
+
+def combined_params(noise: ImuNoise, gravity_m_s2: float) -> gtsam.PreintegrationCombinedParams:
+    """GTSAM ``PreintegrationCombinedParams`` for a z-up world with gravity (0, 0, -g)."""
+    params = gtsam.PreintegrationCombinedParams.MakeSharedU(gravity_m_s2)
+    params.setGyroscopeCovariance(np.eye(3) * noise.gyro_noise_density**2)
+    params.setAccelerometerCovariance(np.eye(3) * noise.accel_noise_density**2)
+    params.setBiasOmegaCovariance(np.eye(3) * noise.gyro_bias_walk**2)
+    params.setBiasAccCovariance(np.eye(3) * noise.accel_bias_walk**2)
+    params.setIntegrationCovariance(np.eye(3) * noise.integration_sigma**2)
+    return params
+
+
+@dataclass
+class KeyframeImuIntegrator:
+    """Accumulates IMU samples into a preintegration since the last keyframe.
+
+    ``add(t, gyro, accel)`` integrates the *previous* sample over ``[cursor, t)`` and holds the
+    new one; ``close(t_k)`` integrates the held sample up to ``t_k`` and returns the
+    preintegrated measurement of ``[t_prev_keyframe, t_k]``, then starts a new one.
+
+    With ``interpolate`` (default) the value used over a sub-interval is the linear
+    interpolation between the held sample and the next one at the sub-interval's midpoint
+    (samples are instantaneous values, e.g. the simulator's), which needs the next sample:
+    ``lookahead`` is set by the smoother before it closes a keyframe (keyframes are
+    committed only once the stream has moved past their time). Without it: zero-order hold.
+
+    Attributes:
+        params: GTSAM preintegration parameters.
+        max_gap_s: a hold longer than this is an ``InputError`` (an IMU outage).
+    """
+
+    params: gtsam.PreintegrationCombinedParams
+    max_gap_s: float
+    cursor: float = 0.0
+    held_t: float | None = None
+    held_gyro: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    held_accel: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    pim: gtsam.PreintegratedCombinedMeasurements | None = None
+    integrated_s: float = 0.0
+    samples_since_keyframe: int = 0
+    interpolate: bool = True
+    lookahead: tuple[float, np.ndarray, np.ndarray] | None = None
+
+    def start(self, t: float, bias: gtsam.imuBias.ConstantBias) -> None:
+        """Begin a new preintegration at keyframe time ``t`` linearised at ``bias``."""
+        self.cursor = float(t)
+        self.pim = gtsam.PreintegratedCombinedMeasurements(self.params, bias)
+        self.integrated_s = 0.0
+        self.samples_since_keyframe = 0
+
+    def _integrate_until(self, t: float) -> None:
+        if self.held_t is None:
+            return
+        dt = t - self.cursor
+        if dt <= 0.0:
+            return
+        if t - self.held_t > self.max_gap_s:
+            raise InputError(
+                f"IMU gap: no sample between t={self.held_t:.6f} s and t={t:.6f} s "
+                f"({t - self.held_t:.3f} s > max_imu_gap_s={self.max_gap_s})"
+            )
+        assert self.pim is not None
+        gyro, accel = self.held_gyro, self.held_accel
+        if self.interpolate and self.lookahead is not None and self.lookahead[0] > self.held_t:
+            # Samples are instantaneous values: use the straight line between this sample
+            # and the next one at the sub-interval's midpoint (second-order accurate).
+            next_t, next_gyro, next_accel = self.lookahead
+            weight = (0.5 * (self.cursor + t) - self.held_t) / (next_t - self.held_t)
+            gyro = gyro + weight * (next_gyro - gyro)
+            accel = accel + weight * (next_accel - accel)
+        self.pim.integrateMeasurement(accel, gyro, dt)
+        self.integrated_s += dt
+        self.cursor = t
+
+    def _hold(self, t: float, gyro: np.ndarray, accel: np.ndarray) -> None:
+        self.held_t = float(t)
+        self.held_gyro = np.asarray(gyro, dtype=float)
+        self.held_accel = np.asarray(accel, dtype=float)
+
+    def add(self, t: float, gyro: np.ndarray, accel: np.ndarray) -> bool:
+        """Hold a new sample; returns False (and ignores it) for a repeated timestamp."""
+        if self.held_t is not None and t == self.held_t:
+            return False
+        if self.held_t is None:
+            if t - self.cursor > self.max_gap_s:
+                raise InputError(
+                    f"IMU gap: first sample at t={t:.6f} s, {t - self.cursor:.3f} s after the start "
+                    f"(max_imu_gap_s={self.max_gap_s})"
+                )
+            # The first sample also covers the short stretch from the start to itself.
+            self._hold(t, gyro, accel)
+            self._integrate_until(t)
+        else:
+            self.lookahead = (float(t), np.asarray(gyro, dtype=float), np.asarray(accel, dtype=float))
+            self._integrate_until(t)
+            self._hold(t, gyro, accel)
+        self.lookahead = None
+        self.samples_since_keyframe += 1
+        return True
+
+    def close(self, t: float) -> gtsam.PreintegratedCombinedMeasurements:
+        """Integrate up to keyframe time ``t`` and return the finished preintegration."""
+        if self.held_t is None:
+            raise InputError(f"a keyframe at t={t:.6f} s needs IMU samples before it; none has arrived")
+        self._integrate_until(t)
+        assert self.pim is not None
+        if self.integrated_s <= 0.0:
+            raise InputError(f"keyframe at t={t:.6f} s has no IMU time since the previous keyframe")
+        return self.pim
+
+
+def navstate_prior_sigmas(rotation_sigma_rad: float, position_sigma_m: float) -> np.ndarray:
+    """Pose3 prior sigmas in GTSAM's tangent order [rotation, translation], shape (6,)."""
+    return np.array([rotation_sigma_rad] * 3 + [position_sigma_m] * 3)
+
+
+def bias_prior_sigmas(accel_sigma_m_s2: float, gyro_sigma_rad_s: float) -> np.ndarray:
+    """ConstantBias prior sigmas in GTSAM's order [accelerometer, gyroscope], shape (6,)."""
+    return np.array([accel_sigma_m_s2] * 3 + [gyro_sigma_rad_s] * 3)
+
+
+class ImuMotion:
+    """3-D keyframe motion model: ``X_k`` (Pose3), ``V_k`` (world velocity), ``B_k`` (bias),
+    linked by one ``CombinedImuFactor`` per keyframe interval (bias random walk inside)."""
+
+    dimension = 3
+
+    def __init__(self, noise: ImuNoise, gravity_m_s2: float, max_gap_s: float, interpolate: bool = True) -> None:
+        self.params = combined_params(noise, gravity_m_s2)
+        self.integrator = KeyframeImuIntegrator(self.params, max_gap_s, interpolate=interpolate)
+        self.preintegrations: dict[int, gtsam.PreintegratedCombinedMeasurements] = {}
+
+    @staticmethod
+    def keys(k: int) -> list[int]:
+        return [X(k), V(k), B(k)]
+
+    @staticmethod
+    def pose_key(k: int) -> int:
+        return X(k)
+
+    def accepts(self, measurement: object) -> bool:
+        return isinstance(measurement, ImuSample)
+
+    def look_ahead(self, sample: ImuSample) -> None:
+        """The next sample, known before a keyframe between it and the held one is closed."""
+        self.integrator.lookahead = (float(sample.t), np.asarray(sample.gyro, dtype=float), np.asarray(sample.accel, dtype=float))
+
+    def add(self, sample: ImuSample) -> None:
+        if not (np.all(np.isfinite(sample.gyro)) and np.all(np.isfinite(sample.accel))):
+            raise InputError(f"non-finite IMU sample at t={sample.t:.6f} s")
+        self.integrator.add(sample.t, sample.gyro, sample.accel)
+
+    def initial(self, start: InitialState, priors: InitialPriors) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+        """Variables and priors of keyframe 0 at ``start.t``."""
+        pose = gtsam.Pose3(gtsam.Rot3(matrix_from_quat_wxyz(start.rotation)), np.asarray(start.position, dtype=float))
+        velocity = np.zeros(3) if start.velocity is None else np.asarray(start.velocity, dtype=float)
+        bias = gtsam.imuBias.ConstantBias()
+        graph = gtsam.NonlinearFactorGraph()
+        graph.add(gtsam.PriorFactorPose3(X(0), pose, gtsam.noiseModel.Diagonal.Sigmas(navstate_prior_sigmas(priors.rotation_sigma_rad, priors.position_sigma_m))))
+        graph.add(gtsam.PriorFactorVector(V(0), velocity, gtsam.noiseModel.Isotropic.Sigma(3, priors.velocity_sigma_m_s)))
+        graph.add(
+            gtsam.PriorFactorConstantBias(
+                B(0), bias, gtsam.noiseModel.Diagonal.Sigmas(bias_prior_sigmas(priors.accel_bias_sigma_m_s2, priors.gyro_bias_sigma_rad_s))
+            )
+        )
+        values = gtsam.Values()
+        values.insert(X(0), pose)
+        values.insert(V(0), velocity)
+        values.insert(B(0), bias)
+        self.integrator.start(start.t, bias)
+        return graph, values
+
+    def close(self, k: int, t: float, estimate: gtsam.Values) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+        """``CombinedImuFactor`` from ``k-1`` to ``k`` and the predicted state of ``k``."""
+        pim = self.integrator.close(t)
+        self.preintegrations[k] = pim
+        graph = gtsam.NonlinearFactorGraph()
+        graph.add(gtsam.CombinedImuFactor(X(k - 1), V(k - 1), X(k), V(k), B(k - 1), B(k), pim))
+        previous = gtsam.NavState(estimate.atPose3(X(k - 1)), estimate.atVector(V(k - 1)))
+        bias = estimate.atConstantBias(B(k - 1))
+        predicted = pim.predict(previous, bias)
+        values = gtsam.Values()
+        values.insert(X(k), predicted.pose())
+        values.insert(V(k), predicted.velocity())
+        values.insert(B(k), bias)
+        return graph, values
+
+    def dead_reckoning_step(self, k: int, values: gtsam.Values) -> gtsam.Values:
+        """Open-loop state of keyframe ``k`` from ``k-1`` in ``values`` (bias held at k-1's)."""
+        bias = values.atConstantBias(B(k - 1))
+        predicted = self.preintegrations[k].predict(gtsam.NavState(values.atPose3(X(k - 1)), values.atVector(V(k - 1))), bias)
+        step = gtsam.Values()
+        step.insert(X(k), predicted.pose())
+        step.insert(V(k), predicted.velocity())
+        step.insert(B(k), bias)
+        return step
+
+    def restart(self, t: float, estimate: gtsam.Values, k: int) -> None:
+        """Begin the next interval at keyframe ``k``, linearised at its bias estimate."""
+        self.integrator.start(t, estimate.atConstantBias(B(k)))
+
+    def since_keyframe(self) -> int:
+        return self.integrator.samples_since_keyframe
+
+    @staticmethod
+    def pose_of(values: gtsam.Values, k: int) -> gtsam.Pose3:
+        return values.atPose3(X(k))
+
+    @staticmethod
+    def record(recorder: EstimateRecorder, t: float, values: gtsam.Values, k: int, marginals: MarginalSource | None) -> None:
+        """Pose, world velocity and both biases of keyframe ``k`` in interface conventions."""
+        pose = values.atPose3(X(k))
+        bias = values.atConstantBias(B(k))
+        pose_cov = velocity_cov = gyro_cov = accel_cov = None
+        if marginals is not None:
+            pose_cov = pose_covariance(marginals.marginalCovariance(X(k)))
+            velocity_cov = vector_covariance(marginals.marginalCovariance(V(k)))
+            split = bias_covariances(marginals.marginalCovariance(B(k)))
+            gyro_cov, accel_cov = split.gyro, split.accel
+        recorder.pose(t, pose.translation(), quat_wxyz_from_matrix(pose.rotation().matrix()), pose_cov)
+        recorder.block(BlockName.VELOCITY, t, values.atVector(V(k)), velocity_cov, Frame.WORLD)
+        recorder.block(BlockName.GYRO_BIAS, t, bias.gyroscope(), gyro_cov, Frame.BODY)
+        recorder.block(BlockName.ACCEL_BIAS, t, bias.accelerometer(), accel_cov, Frame.BODY)
