@@ -28,7 +28,10 @@ app = typer.Typer(
 )
 
 # Command groups defined in their own modules, each with ``register(app)`` (explicit list).
-COMMAND_MODULES: tuple[str, ...] = ("workbench.commands.metrics",)
+COMMAND_MODULES: tuple[str, ...] = (
+    "workbench.commands.metrics",
+    "workbench.commands.bench",
+)
 
 SetOption = Annotated[Optional[list[str]], typer.Option("--set", help="estimator option key=value (repeatable)")]
 DataOption = Annotated[Optional[list[str]], typer.Option("--data", help="dataset option key=value (repeatable)")]
