@@ -66,6 +66,16 @@ ESTIMATORS: tuple[EstimatorEntry, ...] = (
         "filters.dead_reckoning:DeadReckoning",
         "strap-down IMU / odometry / gyro integration without corrections (the lower bound)",
     ),
+    EstimatorEntry(
+        "sensor-based",
+        "filters.sensor_based.filter:SensorBasedSlam",
+        "Guerreiro et al. 2013 GAS sensor-based (robocentric LTV Kalman) SLAM: gyro + body-frame landmarks, JCBB",
+    ),
+    EstimatorEntry(
+        "ekf-slam",
+        "filters.ekf_slam.filter:EkfSlam",
+        "world-centric EKF-SLAM baseline (odometry or gyro + constant velocity; ids or JCBB; Joseph form)",
+    ),
 )
 
 DATASETS: tuple[DatasetEntry, ...] = (

@@ -1,0 +1,16 @@
+"""World-centric EKF-SLAM baseline (``ekf-slam``), 2-D and 3-D in one design.
+
+The classic filter (Smith, Self and Cheeseman; Dissanayake et al. 2001) that Bailey,
+Nieto, Guivant, Stevens and Nebot (2006, "Consistency of the EKF-SLAM algorithm") showed
+to become inconsistent: the Jacobians are evaluated at the current estimate, so the
+linearised system has spurious heading information. Modules:
+
+- ``config``: options (pydantic).
+- ``layout``: where each block sits in the joint state vector.
+- ``motion``: vehicle motion models (odometry relative pose, gyro + constant velocity).
+- ``observation``: body-frame landmark observation, its Jacobians and inverse.
+- ``boundary``: conversion of the world-frame EKF error to the interface conventions.
+- ``filter``: the estimator class ``EkfSlam``.
+
+Kept free of imports so that loading one module does not load the others.
+"""

@@ -1,0 +1,45 @@
+"""Options of the world-centric EKF-SLAM (``--set key=value``)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from filters.association import DEFAULT_MAX_NODES
+
+
+class EkfSlamConfig(BaseModel):
+    """Options of ``ekf-slam``."""
+
+    model_config = ConfigDict(extra="forbid")
+    motion_input: Literal["auto", "odometry", "gyro"] = Field(
+        "auto", description="motion model input: auto = odometry when the data has it, else the gyro (IMU gyro in 3-D)"
+    )
+    association: Literal["auto", "ids", "jcbb"] = Field(
+        "auto", description="auto = the scan's ids when present, else JCBB (filters/association.py)"
+    )
+    gate_probability: float = Field(0.99, gt=0, lt=1, description="chi-square gate probability of JCBB (individual and joint)")
+    max_nodes: int = Field(DEFAULT_MAX_NODES, ge=1, description="cap on JCBB interpretation-tree nodes per scan")
+    id_gate_probability: float | None = Field(
+        0.9999, gt=0, lt=1, description="with ids: reject a sighting whose NIS exceeds this chi-square quantile (None: never)"
+    )
+    acceleration_density: float = Field(
+        0.3, ge=0, description="gyro-driven model: white acceleration density driving the velocity [m/s^2/sqrt(Hz)]"
+    )
+    rotate_velocity_with_gyro: bool = Field(
+        True, description="gyro-driven model: world velocity turns with the body (constant body-frame velocity); false: constant world velocity"
+    )
+    estimate_gyro_bias: bool = Field(True, description="gyro-driven model: gyro bias in the state")
+    gyro_noise_density: float | None = Field(None, ge=0, description="[rad/s/sqrt(Hz)]; None: the dataset's NoiseSpec (else 1e-3)")
+    gyro_bias_walk: float | None = Field(None, ge=0, description="[rad/s^2/sqrt(Hz)]; None: the dataset's NoiseSpec (else 1e-5)")
+    gyro_bias_sigma_rad_s: float | None = Field(None, ge=0, description="initial bias std; None: the dataset's NoiseSpec (else 0.01)")
+    odometry_noise_scale: float = Field(1.0, gt=0, description="multiplies the odometry covariance of the data")
+    measurement_noise_scale: float = Field(1.0, gt=0, description="multiplies the landmark covariances of the data")
+    max_gap_s: float = Field(1.0, gt=0, description="a motion-input gap longer than this is logged (event motion_gap) and inflates the pose covariance")
+    gap_speed_m_s: float = Field(0.5, ge=0, description="position std added per second of a motion gap [m/s]")
+    gap_rate_rad_s: float = Field(0.2, ge=0, description="heading std added per second of a motion gap [rad/s]")
+    prune_single_sightings_after_s: float | None = Field(
+        None, gt=0, description="delete a landmark seen only once when this long has passed (None: keep every landmark)"
+    )
+    landmark_snapshot_every_s: float = Field(1.0, ge=0, description="interval of the recorded map snapshots [s] (0: every scan)")
