@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import json
 from pathlib import Path
 
 import numpy as np
@@ -342,6 +343,15 @@ def test_empty_scans_are_emitted_with_zero_rows():
 def test_bad_options_raise_input_error(scenario, options, message):
     with pytest.raises(InputError, match=message):
         load_scenario(scenario, 0, options)
+
+
+def test_metadata_is_plain_json_and_imu_densities_can_be_overridden():
+    sequence = load_scenario("circle", 0, {"gyro_noise_density": "0.002", "duration_s": "1"})
+    assert json.loads(json.dumps(sequence.metadata)) == sequence.metadata
+    assert sequence.metadata["source"] == "simulator" and sequence.metadata["options"]["gyro_noise_density"] == 0.002
+    assert sequence.noise.gyro_noise_density == 0.002 and sequence.noise.accel_noise_density == 0.01
+    planar = load_scenario("guerreiro-loop", 0, {"duration_s": "1"})
+    assert json.loads(json.dumps(planar.metadata)) == planar.metadata
 
 
 def test_describe_lists_every_scenario_and_its_options():

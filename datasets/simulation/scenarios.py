@@ -2,9 +2,10 @@
 ``sim:circle``, ``sim:static``.
 
 ``load_scenario(argument, seed, options)`` is the dataset loader the registry names.
-The world layout (terrain, landmark positions, per-landmark sigmas) comes from the
-``layout_seed`` option (default 0), the sensor noise from ``seed``: Monte Carlo runs over
-seeds see the same world with fresh noise. Independent generators per sensor mean that
+In the 3-D scenarios the world layout (landmark positions, per-landmark sigmas) comes
+from the ``layout_seed`` option (default 0); the corridor building of ``guerreiro-loop`` is
+fixed. The sensor noise comes from ``seed``: Monte Carlo runs over seeds see the same world
+with fresh noise. Independent generators per sensor mean that
 changing one sensor's option does not change another sensor's noise.
 
 Noise scale: ``noise_scale`` multiplies every drawn noise std (inertial white noise, bias
@@ -47,14 +48,26 @@ class _CommonOptions(BaseModel):
     landmark_rate_hz: float = Field(10.0, gt=0, le=1000, description="landmark scan rate [Hz]")
     range_m: float = Field(20.0, gt=0, description="maximum landmark range [m]")
     fov_deg: float = Field(360.0, gt=0, le=360, description="horizontal field of view centred on body x [deg]")
-    layout_seed: int = Field(0, ge=0, description="seed of the world layout (landmarks, sigmas); noise uses --seed")
 
 
 class _SpatialOptions(_CommonOptions):
+    layout_seed: int = Field(0, ge=0, description="seed of the world layout (landmarks, sigmas); noise uses --seed")
     imu_rate_hz: float = Field(100.0, gt=0, le=10000, description="IMU rate [Hz]")
     vertical_fov_deg: float = Field(60.0, gt=0, le=180, description="vertical field of view [deg]")
     gyro_bias_sigma_rad_s: float = Field(1e-3, ge=0, description="std of the initial gyro bias [rad/s]")
     accel_bias_sigma_m_s2: float = Field(0.05, ge=0, description="std of the initial accelerometer bias [m/s^2]")
+    gyro_noise_density: float | None = Field(
+        None, ge=0, description="gyro white noise [rad/s/sqrt(Hz)]; default: KITTI GyroscopeSigma (gtsam Data)"
+    )
+    accel_noise_density: float | None = Field(
+        None, ge=0, description="accelerometer white noise [m/s^2/sqrt(Hz)]; default: KITTI AccelerometerSigma"
+    )
+    gyro_bias_walk: float | None = Field(
+        None, ge=0, description="gyro bias random walk [rad/s^2/sqrt(Hz)]; default: KITTI GyroscopeBiasSigma"
+    )
+    accel_bias_walk: float | None = Field(
+        None, ge=0, description="accelerometer bias random walk [m/s^3/sqrt(Hz)]; default: KITTI AccelerometerBiasSigma"
+    )
 
 
 class AghiliRoverOptions(_SpatialOptions):
@@ -109,13 +122,18 @@ def _metadata(scenario: str, seed: int, options: BaseModel, **extra: object) -> 
 
 
 def _kitti_inertial_noise(options: _SpatialOptions) -> InertialNoise:
-    """KITTI-equivalent IMU densities from gtsam's Data folder (the paper states none)."""
+    """IMU densities: the options' where given, else the KITTI-equivalent ones read from
+    gtsam's Data/KittiEquivBiasedImu_metadata.txt (Aghili's paper states no IMU grade)."""
     sigmas = kitti_imu_sigmas()
+
+    def pick(value: float | None, kitti_name: str) -> float:
+        return sigmas[kitti_name] if value is None else value
+
     return InertialNoise(
-        gyro_noise_density=sigmas["GyroscopeSigma"],
-        accel_noise_density=sigmas["AccelerometerSigma"],
-        gyro_bias_walk=sigmas["GyroscopeBiasSigma"],
-        accel_bias_walk=sigmas["AccelerometerBiasSigma"],
+        gyro_noise_density=pick(options.gyro_noise_density, "GyroscopeSigma"),
+        accel_noise_density=pick(options.accel_noise_density, "AccelerometerSigma"),
+        gyro_bias_walk=pick(options.gyro_bias_walk, "GyroscopeBiasSigma"),
+        accel_bias_walk=pick(options.accel_bias_walk, "AccelerometerBiasSigma"),
         gyro_bias_sigma_rad_s=options.gyro_bias_sigma_rad_s,
         accel_bias_sigma_m_s2=options.accel_bias_sigma_m_s2,
     )
@@ -211,7 +229,7 @@ def aghili_rover(seed: int, options: AghiliRoverOptions) -> Sequence:
     duration = options.duration_s if options.duration_s is not None else motion.period_s
     return _simulate_spatial(
         "aghili-rover", motion, duration, np.column_stack([xy, heights]), sigmas, options, seed,
-        landmark_sigmas_m=[float(value) for value in sigmas], lap_duration_s=motion.period_s,
+        landmark_sigmas_m=[float(value) for value in sigmas], lap_duration_s=float(motion.period_s),
     )
 
 
@@ -318,15 +336,15 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     noise = _noise_spec(nominal.scaled(stated), laser.near_range_sigma_m * stated, rates, planar=True)
     metadata = _metadata(
         "guerreiro-loop", seed, options,
-        path_length_m=motion.path.length_m, laser_bearing_sigma_deg=3.75,
+        path_length_m=float(motion.path.length_m), laser_bearing_sigma_deg=3.75,
         laser_range_sigma_m={"up_to_10_m": 0.15, "beyond_10_m": 0.25},
     )
     return build_sequence("sim:guerreiro-loop", data, noise, options.ids, metadata)
 
 
 _SCENARIOS: dict[str, tuple[type[BaseModel], Callable[[int, BaseModel], Sequence], str]] = {
-    "aghili-rover": (AghiliRoverOptions, aghili_rover, "Aghili sec. 5: 3-D rover, 7 via points, 30x60 m slopes, IMU 20 Hz, ~3 min"),
-    "guerreiro-loop": (GuerreiroLoopOptions, guerreiro_loop, "Guerreiro sec. V: 2-D 60 m corridor loop, 0.4 m/s, wall corners, laser with line of sight, rate gyro"),
+    "aghili-rover": (AghiliRoverOptions, aghili_rover, "Aghili sec. 5: 3-D rover loop through 7 via points on a 30x60 m sloped terrain, 1 m/s, IMU 20 Hz, landmarks 10 Hz, one lap 144 s"),
+    "guerreiro-loop": (GuerreiroLoopOptions, guerreiro_loop, "Guerreiro sec. V: 2-D 60 m corridor loop at 0.4 m/s (150 s), 76 wall corners, laser 10 Hz with line of sight, rate gyro 10 Hz"),
     "circle": (CircleOptions, circle, "3-D level circle, r 10 m at 2 m/s, IMU 100 Hz + landmarks, 60 s"),
     "static": (StaticOptions, static, "3-D vehicle at rest (tilted), IMU 100 Hz + landmarks, 60 s"),
 }
