@@ -76,6 +76,21 @@ ESTIMATORS: tuple[EstimatorEntry, ...] = (
         "filters.ekf_slam.filter:EkfSlam",
         "world-centric EKF-SLAM baseline (odometry or gyro + constant velocity; ids or JCBB; Joseph form)",
     ),
+    EstimatorEntry(
+        "smoother-batch",
+        "smoothers.modes:SmootherBatch",
+        "GTSAM batch Levenberg-Marquardt over IMU-preintegration keyframes + landmarks (2-D: Pose2/Point2), started from an iSAM2 pass: the reference",
+    ),
+    EstimatorEntry(
+        "smoother-isam2",
+        "smoothers.modes:SmootherIsam2",
+        "GTSAM iSAM2 over IMU-preintegration keyframes + landmarks/GPS (2-D: Pose2/Point2); causal = after each keyframe",
+    ),
+    EstimatorEntry(
+        "smoother-fixed-lag",
+        "smoothers.modes:SmootherFixedLag",
+        "GTSAM IncrementalFixedLagSmoother (window lag_s) over the same keyframe graph",
+    ),
 )
 
 DATASETS: tuple[DatasetEntry, ...] = (
@@ -101,6 +116,13 @@ DATASETS: tuple[DatasetEntry, ...] = (
         "Victoria Park (gtsam Data): odometry increments and tree landmarks, nominal 0.2 s step, no truth",
         examples=("victoria-park",),
         describe_target="datasets.victoria_park:describe",
+    ),
+    DatasetEntry(
+        "kitti-imu-gps",
+        "datasets.kitti_imu_gps:load",
+        "KITTI IMU (100 Hz) + GPS (1 Hz) from gtsam Data; a seeded fraction of fixes held out for gps_holdout_rmse_m",
+        examples=("kitti-imu-gps",),
+        describe_target="datasets.kitti_imu_gps:describe",
     ),
 )
 
