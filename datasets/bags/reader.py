@@ -1,0 +1,284 @@
+"""Reading ROS 1 ``.bag`` files and ROS 2 bags (sqlite3 or mcap) lazily, in stamp order.
+
+Everything goes through ``rosbags.highlevel.AnyReader`` and its type store and deserializer
+(the bag's embedded definitions; ROS 1 Noetic / ROS 2 Humble definitions when a bag has
+none). Messages are converted to the workbench vocabulary with their header stamps
+(integer nanoseconds -> float seconds, once, here).
+
+Order: a bag is ordered by log time, but a driver logs a cloud when its sweep ends while its
+stamp is the sweep start, so stamps are not ordered across topics. A small reorder buffer
+(``reorder_window_s``) re-sorts by stamp; a message whose stamp is older than one already
+emitted on its topic (stamps going backwards), or older than the buffer can repair, is
+skipped and counted in the ``ReadReport`` (never silently reordered beyond the window).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from datasets.bags.gps import geodetic_to_enu
+from datasets.bags.pointcloud2 import decode_pointcloud2
+from datasets.errors import InputError
+from datasets.measurements import GpsFix, ImuSample, Measurement, PointCloud
+
+POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
+IMU = "sensor_msgs/msg/Imu"
+NAVSATFIX = "sensor_msgs/msg/NavSatFix"
+ODOMETRY = "nav_msgs/msg/Odometry"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+GROUND_TRUTH_TYPES = (ODOMETRY, POSE_STAMPED)
+
+
+@dataclass
+class ReadReport:
+    """What a pass over a bag skipped, and why (mutable: filled while reading).
+
+    Attributes:
+        skipped: count per ``(topic, reason)``.
+        examples: the first skip of each ``(topic, reason)`` as a message naming the time.
+        nonfinite_points: NaN/inf points dropped from clouds.
+        messages: messages read per topic.
+    """
+
+    skipped: Counter = field(default_factory=Counter)
+    examples: dict[tuple[str, str], str] = field(default_factory=dict)
+    nonfinite_points: int = 0
+    messages: Counter = field(default_factory=Counter)
+
+    def skip(self, topic: str, reason: str, stamp_s: float, detail: str = "") -> None:
+        key = (topic, reason)
+        self.skipped[key] += 1
+        self.examples.setdefault(key, f"{topic} at t={stamp_s:.9f}: {reason}{(' (' + detail + ')') if detail else ''}")
+
+    def lines(self) -> list[str]:
+        """One line per skip kind: ``N x topic: reason (first at t=...)``."""
+        return [f"skipped {count} x {self.examples[key]}" for key, count in sorted(self.skipped.items())]
+
+
+@dataclass(frozen=True)
+class BagTopics:
+    """The topics a bag source reads (None: absent)."""
+
+    lidar: str
+    imu: str | None = None
+    ground_truth: str | None = None
+    gps: str | None = None
+
+
+def _default_typestore(path: Path):
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS1_NOETIC if path.suffix == ".bag" else Stores.ROS2_HUMBLE)
+
+
+@contextmanager
+def open_bag(path: str | Path):
+    """An open ``AnyReader``; ``InputError`` naming the file for anything unreadable."""
+    from rosbags.highlevel import AnyReader
+
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such bag file or folder")
+    try:
+        reader = AnyReader([path], default_typestore=_default_typestore(path))
+        reader.open()
+    except InputError:
+        raise
+    except Exception as error:  # rosbags raises several types for malformed or truncated bags
+        raise InputError(f"{path}: cannot open bag ({type(error).__name__}: {error})") from None
+    try:
+        yield reader
+    finally:
+        try:
+            reader.close()
+        except Exception:  # closing a reader of a broken file must not hide the real error
+            pass
+
+
+def topic_types(reader) -> dict[str, str]:
+    """``{topic: message type}`` of an open reader."""
+    return {connection.topic: connection.msgtype for connection in reader.connections}
+
+
+def _listing(types: dict[str, str]) -> str:
+    return "; ".join(f"{topic} [{msgtype}]" for topic, msgtype in sorted(types.items())) or "no topics"
+
+
+def _choose(path: Path, types: dict[str, str], wanted: tuple[str, ...], given: str | None, role: str, option: str, required: bool) -> str | None:
+    if given:
+        if given not in types:
+            raise InputError(f"{path}: no topic '{given}' ({option}); topics: {_listing(types)}")
+        if types[given] not in wanted:
+            raise InputError(f"{path}: topic '{given}' is {types[given]}, not {' or '.join(wanted)} ({option})")
+        return given
+    candidates = sorted(topic for topic, msgtype in types.items() if msgtype in wanted)
+    if not candidates:
+        if required:
+            raise InputError(f"{path}: no {' or '.join(wanted)} topic for the {role}; topics: {_listing(types)}")
+        return None
+    if len(candidates) > 1 and role == "ground truth":
+        named = [topic for topic in candidates if any(key in topic.lower() for key in ("truth", "gt", "groundtruth"))]
+        if len(named) == 1:
+            return named[0]
+    if len(candidates) > 1:
+        listed = ", ".join(f"{topic} [{types[topic]}]" for topic in candidates)
+        raise InputError(f"{path}: several {role} topics: {listed}; choose one with {option}=TOPIC")
+    return candidates[0]
+
+
+def discover_topics(path: Path, types: dict[str, str], lidar: str | None = None, imu: str | None = None, ground_truth: str | None = None, gps: str | None = None) -> BagTopics:
+    """Topics by type when not given; ``InputError`` with the candidates when ambiguous."""
+    return BagTopics(
+        lidar=_choose(path, types, (POINTCLOUD2,), lidar, "lidar", "lidar_topic", True),
+        imu=_choose(path, types, (IMU,), imu, "IMU", "imu_topic", False),
+        ground_truth=_choose(path, types, GROUND_TRUTH_TYPES, ground_truth, "ground truth", "ground_truth_topic", False),
+        gps=_choose(path, types, (NAVSATFIX,), gps, "GPS", "gps_topic", False),
+    )
+
+
+def stamp_seconds(message, log_ns: int) -> float:
+    """Header stamp [s] (the log time when the message has no header or a zero stamp)."""
+    header = getattr(message, "header", None)
+    if header is None:
+        return log_ns * 1e-9
+    stamp = header.stamp
+    ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+    return ns * 1e-9 if ns > 0 else log_ns * 1e-9
+
+
+def iter_messages(reader, path: Path, topics: list[str]) -> Iterator[tuple[str, str, float, object]]:
+    """``(topic, type, stamp [s], message)`` in log order; rosbags failures -> ``InputError``
+    naming the file, the topic and the time of the last good message."""
+    connections = [connection for connection in reader.connections if connection.topic in topics]
+    stream = reader.messages(connections=connections)
+    last = "the start"
+    while True:
+        try:
+            item = next(stream)
+        except StopIteration:
+            return
+        except Exception as error:
+            raise InputError(f"{path}: unreadable after {last} ({type(error).__name__}: {error})") from None
+        connection, log_ns, raw = item
+        try:
+            message = reader.deserialize(raw, connection.msgtype)
+        except Exception as error:
+            raise InputError(f"{path}: {connection.topic} at log time {log_ns * 1e-9:.9f}: cannot deserialize {connection.msgtype} ({type(error).__name__}: {error})") from None
+        stamp = stamp_seconds(message, log_ns)
+        last = f"{connection.topic} at t={stamp:.9f}"
+        yield connection.topic, connection.msgtype, stamp, message
+
+
+def _vector(v) -> np.ndarray:
+    return np.array([v.x, v.y, v.z], dtype=float)
+
+
+def pose_of(message, msgtype: str) -> tuple[np.ndarray, np.ndarray]:
+    """Position (3,) and quaternion (w, x, y, z) (4,) of an Odometry or PoseStamped."""
+    pose = message.pose.pose if msgtype == ODOMETRY else message.pose
+    q = pose.orientation
+    return _vector(pose.position), np.array([q.w, q.x, q.y, q.z], dtype=float)
+
+
+@dataclass(frozen=True)
+class ReadSettings:
+    """How to convert: point time unit, GPS origin and default GPS sigma, reorder window."""
+
+    time_unit: str = "auto"
+    gps_origin: tuple[float, float, float] | None = None
+    gps_sigma_m: float = 1.0
+    reorder_window_s: float = 1.0
+
+
+def convert(path: Path, topic: str, msgtype: str, stamp: float, message, settings: ReadSettings, report: ReadReport) -> Measurement | None:
+    """One message -> measurement, or None (skipped and counted) for an empty cloud, NaN IMU
+    sample or GPS without fix. ``InputError`` for a cloud without x/y/z."""
+    where = f"{path}, topic {topic}, t={stamp:.9f}"
+    if msgtype == POINTCLOUD2:
+        cloud = decode_pointcloud2(message, stamp, where, settings.time_unit)
+        report.nonfinite_points += cloud.nonfinite
+        if cloud.points.shape[0] == 0:
+            report.skip(topic, "empty cloud (no finite points)", stamp)
+            return None
+        return PointCloud(t=stamp, points=cloud.points, point_times=cloud.point_times)
+    if msgtype == IMU:
+        gyro, accel = _vector(message.angular_velocity), _vector(message.linear_acceleration)
+        if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(accel))):
+            report.skip(topic, "non-finite IMU sample", stamp)
+            return None
+        return ImuSample(t=stamp, gyro=gyro, accel=accel)
+    if msgtype == NAVSATFIX:
+        fix = np.array([[message.latitude, message.longitude, message.altitude]], dtype=float)
+        if message.status.status < 0 or not np.all(np.isfinite(fix)) or settings.gps_origin is None:
+            report.skip(topic, "GPS without fix", stamp)
+            return None
+        covariance = np.asarray(message.position_covariance, dtype=float).reshape(3, 3)
+        if message.position_covariance_type == 0 or not np.all(np.isfinite(covariance)) or np.any(np.diag(covariance) <= 0):
+            covariance = np.eye(3) * settings.gps_sigma_m**2
+        return GpsFix(t=stamp, position=geodetic_to_enu(fix, settings.gps_origin)[0], covariance=covariance)
+    return None
+
+
+def first_gps_origin(reader, path: Path, topic: str) -> tuple[float, float, float] | None:
+    """Latitude, longitude, altitude of the first valid fix (the ENU origin), or None."""
+    for _, _, _, message in iter_messages(reader, path, [topic]):
+        values = (float(message.latitude), float(message.longitude), float(message.altitude))
+        if message.status.status >= 0 and np.all(np.isfinite(values)):
+            return values
+    return None
+
+
+def read_ground_truth(path: Path, topic: str, report: ReadReport) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All poses of a ground-truth topic: t (N,), positions (N, 3), quaternions wxyz (N, 4),
+    stamp-ordered; backwards or non-finite poses skipped and counted."""
+    times, positions, quats = [], [], []
+    with open_bag(path) as reader:
+        for _, msgtype, stamp, message in iter_messages(reader, path, [topic]):
+            position, quat = pose_of(message, msgtype)
+            norm = np.linalg.norm(quat)
+            if not (np.all(np.isfinite(position)) and np.isfinite(norm) and norm > 1e-9):
+                report.skip(topic, "non-finite pose", stamp)
+                continue
+            if times and stamp <= times[-1]:
+                report.skip(topic, "stamp not after the previous one", stamp)
+                continue
+            times.append(stamp)
+            positions.append(position)
+            quats.append(quat / norm)
+    return np.array(times), np.array(positions).reshape(-1, 3), np.array(quats).reshape(-1, 4)
+
+
+def read_stream(path: Path, topics: list[str], settings: ReadSettings, report: ReadReport) -> Iterator[tuple[str, Measurement]]:
+    """``(topic, measurement)`` of the given topics, lazily, in stamp order (module docstring)."""
+    heap: list[tuple[float, int, str, Measurement]] = []
+    counter = itertools.count()
+    last_on_topic: dict[str, float] = {}
+    emitted = -np.inf
+    with open_bag(path) as reader:
+        for topic, msgtype, stamp, message in iter_messages(reader, path, topics):
+            report.messages[topic] += 1
+            if stamp <= last_on_topic.get(topic, -np.inf):
+                report.skip(topic, "stamp went backwards", stamp, f"previous {last_on_topic[topic]:.9f}")
+                continue
+            if stamp < emitted:
+                report.skip(topic, "stamp older than the reorder window", stamp, f"already at {emitted:.9f}")
+                continue
+            measurement = convert(path, topic, msgtype, stamp, message, settings, report)
+            last_on_topic[topic] = stamp
+            if measurement is None:
+                continue
+            heapq.heappush(heap, (stamp, next(counter), topic, measurement))
+            while heap and heap[0][0] < stamp - settings.reorder_window_s:
+                emitted, _, out_topic, out = heapq.heappop(heap)
+                yield out_topic, out
+        while heap:
+            emitted, _, out_topic, out = heapq.heappop(heap)
+            yield out_topic, out

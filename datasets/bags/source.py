@@ -1,0 +1,194 @@
+"""Dataset ``bag:PATH``: a ROS 1/ROS 2 bag as a ``Sequence`` with the lidar front end.
+
+Sensors: POINT_CLOUD (the clouds), IMU when the bag has an Imu topic, GPS when it has a
+NavSatFix topic (local ENU about the first fix, ``datasets.bags.gps``), ODOMETRY (KISS-ICP
+relative poses) and LANDMARKS (corners) from the front end. Ground truth: the poses of an
+Odometry/PoseStamped topic, and the true corners when a sidecar ``NAME.corners.json``
+(written by ``workbench simulate lidar-corridor``) lies next to the bag.
+
+Frames: the lidar frame is taken as the body (and IMU) frame; a bag whose sensors are
+mounted apart needs its extrinsics applied before (not handled here).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from datasets.bags.reader import ReadReport, ReadSettings, discover_topics, first_gps_origin, iter_messages, open_bag, read_ground_truth, read_stream, topic_types
+from datasets.errors import InputError
+from datasets.lidar.corner_truth import CornerTruth, interpolate_poses, read_corner_truth, sidecar_for
+from datasets.lidar.corners import CornerConfig
+from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, with_front_end
+from datasets.lidar.kiss_icp_odometry import KissIcpSettings
+from datasets.measurements import Sensor
+from datasets.options import build_model, yaml_value
+from datasets.sequence import InitialState, NoiseSpec, Sequence
+from datasets.state import Frame, GroundTruth, LandmarkMap, StateHistory
+from datasets.trajectory import Trajectory
+
+log = logging.getLogger(__name__)
+
+
+class BagOptions(BaseModel):
+    """``--data`` options of ``bag:PATH`` (nested ones as ``kiss.voxel_size_m=0.5``, ``corner.directions=true``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    lidar_topic: str | None = Field(None, description="PointCloud2 topic (default: the only one)")
+    imu_topic: str | None = Field(None, description="Imu topic (default: the only one, if any)")
+    ground_truth_topic: str | None = Field(None, description="Odometry/PoseStamped ground-truth topic (default: the only one)")
+    gps_topic: str | None = Field(None, description="NavSatFix topic (default: the only one, if any)")
+    imu: bool = Field(True, description="use the IMU topic when there is one")
+    gps: bool = Field(True, description="use the NavSatFix topic when there is one")
+    gps_sigma_m: float = Field(1.0, gt=0, description="GPS std when a fix carries no covariance [m]")
+    point_time_unit: str = Field("auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times")
+    reorder_window_s: float = Field(1.0, ge=0, description="how far stamps may lag bag order and still be reordered [s]")
+    point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
+    max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
+    odometry: bool = Field(True, description="KISS-ICP odometry")
+    corners: bool = Field(True, description="corner landmarks")
+    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings")
+    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings")
+
+
+def nest_dotted(options: dict[str, str]) -> dict[str, object]:
+    """``{"kiss.voxel_size_m": "0.5"}`` -> ``{"kiss": {"voxel_size_m": 0.5}}`` (YAML values)."""
+    nested: dict[str, object] = {}
+    for key, value in options.items():
+        head, dot, tail = key.partition(".")
+        if dot:
+            nested.setdefault(head, {})
+            if not isinstance(nested[head], dict):
+                raise InputError(f"--data {key}: '{head}' is not a group of options")
+            nested[head][tail] = yaml_value(value)  # type: ignore[index]
+        else:
+            nested[key] = yaml_value(value)
+    return nested
+
+
+class LidarSource:
+    """A bag or scan folder with its front end; remembers what the last pass skipped."""
+
+    def __init__(self, front_end: LidarFrontEnd) -> None:
+        self.front_end = front_end
+        self.report = ReadReport()
+
+
+def _ground_truth(times: np.ndarray, positions: np.ndarray, quats: np.ndarray, truth: CornerTruth | None) -> GroundTruth | None:
+    if len(times) < 2 and truth is None:
+        return None
+    pose = Trajectory(times, positions, quats) if len(times) >= 1 else None
+    landmarks = LandmarkMap(ids=truth.ids.copy(), positions=truth.positions.copy(), frame=Frame.WORLD) if truth is not None else None
+    return GroundTruth(history=StateHistory(pose=pose), landmarks=landmarks)
+
+
+def _initial_state(start_s: float, truth: Trajectory | None) -> InitialState:
+    """From the ground truth at the start when the bag has one (velocity by differences);
+    otherwise the first body frame defines the world."""
+    if truth is None or len(truth) < 2:
+        return InitialState(t=start_s, position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0]), velocity=None)
+    t0 = max(start_s, float(truth.t[0]))
+    step = float(np.median(np.diff(truth.t)))
+    positions, quats = interpolate_poses(truth, np.array([t0, t0 + step]))
+    velocity = (positions[1] - positions[0]) / step
+    return InitialState(t=t0, position=positions[0], rotation=quats[0], velocity=velocity)
+
+
+def _imu_noise(reader, topic: str | None, path: Path) -> tuple[float | None, float | None, float | None]:
+    """IMU rate and continuous-time noise densities from the first message's covariances
+    (a discrete std sigma at rate f is a density sigma / sqrt(f)); None where unknown."""
+    if topic is None:
+        return None, None, None
+    info = reader.topics[topic]
+    duration = (reader.end_time - reader.start_time) * 1e-9
+    rate = info.msgcount / duration if duration > 0 and info.msgcount > 1 else None
+    for _, _, _, message in iter_messages(reader, path, [topic]):
+        gyro_var = float(np.asarray(message.angular_velocity_covariance)[0])
+        accel_var = float(np.asarray(message.linear_acceleration_covariance)[0])
+        if rate is None:
+            return None, None, None
+        gyro = np.sqrt(gyro_var / rate) if gyro_var > 0 else None
+        accel = np.sqrt(accel_var / rate) if accel_var > 0 else None
+        return rate, gyro, accel
+    return rate, None, None
+
+
+def load_bag(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
+    """``bag:PATH`` -> ``Sequence`` (module docstring). ``seed`` is unused (nothing random)."""
+    if not argument:
+        raise InputError("dataset bag needs a path: bag:PATH")
+    settings = build_model(BagOptions, nest_dotted(options), f"bag:{argument}")
+    return bag_sequence(argument, settings)[0]
+
+
+def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSource]:
+    """The sequence of bag ``argument`` and its ``LidarSource`` (front end and skip report)."""
+    path = Path(argument)
+    with open_bag(path) as reader:
+        types = topic_types(reader)
+        topics = discover_topics(path, types, settings.lidar_topic, settings.imu_topic, settings.ground_truth_topic, settings.gps_topic)
+        imu_topic = topics.imu if settings.imu else None
+        gps_topic = topics.gps if settings.gps else None
+        origin = first_gps_origin(reader, path, gps_topic) if gps_topic else None
+        if gps_topic and origin is None:
+            log.warning("%s: %s has no valid fix; GPS not used", path, gps_topic)
+            gps_topic = None
+        start_s = reader.start_time * 1e-9
+        rates = {"lidar": reader.topics[topics.lidar].msgcount / max((reader.end_time - reader.start_time) * 1e-9, 1e-9)}
+        imu_rate, gyro_density, accel_density = _imu_noise(reader, imu_topic, path)
+        if imu_rate:
+            rates["imu"] = imu_rate
+    load_report = ReadReport()
+    gt = read_ground_truth(path, topics.ground_truth, load_report) if topics.ground_truth else (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+    sidecar = sidecar_for(path)
+    truth = read_corner_truth(sidecar) if sidecar.is_file() else None
+    ground_truth = _ground_truth(*gt, truth)
+    read_settings = ReadSettings(time_unit=settings.point_time_unit, gps_origin=origin, gps_sigma_m=settings.gps_sigma_m, reorder_window_s=settings.reorder_window_s)
+    front_end = LidarFrontEnd(FrontEndSettings(odometry=settings.odometry, corners=settings.corners, kiss=settings.kiss, corner=settings.corner))
+    source = LidarSource(front_end)
+    topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
+
+    def stream():
+        report = ReadReport()
+        source.report = report
+        yield from with_front_end((m for _, m in read_stream(path, topic_list, read_settings, report)), front_end, settings.point_clouds, settings.max_frames)
+        for line in report.lines():
+            log.warning("%s: %s", path, line)
+
+    sensors = {Sensor.POINT_CLOUD} if settings.point_clouds else set()
+    sensors |= {Sensor.IMU} if imu_topic else set()
+    sensors |= {Sensor.GPS} if gps_topic else set()
+    sensors |= {Sensor.ODOMETRY} if settings.odometry else set()
+    sensors |= {Sensor.LANDMARKS} if settings.corners else set()
+    noise = NoiseSpec(
+        gyro_noise_density=gyro_density, accel_noise_density=accel_density,
+        landmark_sigma_m=settings.corner.range_sigma_m, gps_sigma_m=settings.gps_sigma_m if gps_topic else None, rate_hz=rates,
+    )
+    return Sequence(
+        name=f"bag:{argument}",
+        dimension=3,
+        sensors=frozenset(sensors),
+        stream=stream,
+        ground_truth=ground_truth,
+        noise=noise,
+        initial_state=_initial_state(start_s, ground_truth.pose if ground_truth else None),
+        metadata={
+            "source": str(path),
+            "topics": {"lidar": topics.lidar, "imu": imu_topic, "ground_truth": topics.ground_truth, "gps": gps_topic},
+            "gps_origin": list(origin) if origin else None,
+            "corner_sidecar": str(sidecar) if truth is not None else None,
+            "options": settings.model_dump(mode="json"),
+            "ground_truth_skips": load_report.lines(),
+        },
+    ), source
+
+
+def describe() -> list[str]:
+    """Option lines for ``workbench list --verbose``."""
+    from datasets.options import describe_model
+
+    return describe_model(BagOptions) + [f"kiss.{line}" for line in describe_model(KissIcpSettings)] + [f"corner.{line}" for line in describe_model(CornerConfig)]

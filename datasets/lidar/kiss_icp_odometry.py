@@ -1,0 +1,120 @@
+"""Lidar odometry with KISS-ICP's Python API (``kiss_icp.kiss_icp.KissICP``, ``KISSConfig``).
+
+Timestamps: KISS-ICP's preprocessor normalizes the per-point timestamps it is given to
+[0, 1] by their min and max and deskews every point to the *end* of the sweep (normalized
+time 1) with the constant-velocity prediction (the previous frame's motion). We hand it
+the per-point times already normalized the same way (so a frame with all-equal times, which
+would divide by zero inside, is passed without timestamps and not deskewed), and stamp the
+resulting pose with the time of the latest point, ``t + max(point_times)``.
+
+Output: the pose of each frame (body = lidar frame, world = the first frame's body frame),
+as a ``Trajectory``, and relative poses between consecutive frames as ``Odometry``
+measurements ``(rotation vector, translation)`` in the previous body frame, with a fixed
+per-frame covariance from the config (KISS-ICP itself reports none).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from datasets.measurements import Odometry, PointCloud
+from datasets.rotations import so3_log
+from datasets.trajectory import Trajectory, trajectory_from_homogeneous
+
+
+class KissIcpSettings(BaseModel):
+    """KISS-ICP parameters used by the workbench (a subset of ``KISSConfig``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    max_range_m: float = Field(60.0, gt=0, description="farthest point used [m]")
+    min_range_m: float = Field(0.5, ge=0, description="nearest point used [m]")
+    voxel_size_m: float | None = Field(None, gt=0, description="map voxel [m] (default: max_range / 100, as KISS-ICP)")
+    deskew: bool = Field(True, description="motion-compensate with per-point times when the cloud has them")
+    max_points_per_voxel: int = Field(20, ge=1, description="KISS-ICP map density")
+    max_num_threads: int = Field(0, ge=0, description="threads (0: automatic)")
+    rotation_sigma_rad: float = Field(0.002, gt=0, description="std of each rotation component of a frame-to-frame odometry [rad]")
+    translation_sigma_m: float = Field(0.02, gt=0, description="std of each translation component of a frame-to-frame odometry [m]")
+
+    def kiss_config(self):
+        """The equivalent ``kiss_icp.config.KISSConfig``."""
+        from kiss_icp.config import KISSConfig
+
+        config = KISSConfig()
+        config.data.max_range = self.max_range_m
+        config.data.min_range = self.min_range_m
+        config.data.deskew = self.deskew
+        config.mapping.voxel_size = self.voxel_size_m if self.voxel_size_m is not None else self.max_range_m / 100.0
+        config.mapping.max_points_per_voxel = self.max_points_per_voxel
+        config.registration.max_num_threads = self.max_num_threads
+        return config
+
+
+def normalized_point_times(point_times: np.ndarray | None) -> np.ndarray:
+    """Per-point times scaled to [0, 1] as KISS-ICP's deskew expects; empty (no deskew) when
+    absent or when the cloud has a single time."""
+    if point_times is None or len(point_times) == 0:
+        return np.zeros(0)
+    low, high = float(np.min(point_times)), float(np.max(point_times))
+    if not high > low:
+        return np.zeros(0)
+    return (np.asarray(point_times, dtype=np.float64) - low) / (high - low)
+
+
+@dataclass(frozen=True)
+class RegisteredFrame:
+    """One frame after KISS-ICP.
+
+    Attributes:
+        t: pose time [s] (the latest point's time).
+        pose: (4, 4) body-to-world.
+        points: (m, 3) deskewed, range-cropped points in the body frame at ``t`` [m].
+        odometry: the relative pose since the previous frame, None for the first.
+    """
+
+    t: float
+    pose: np.ndarray
+    points: np.ndarray
+    odometry: Odometry | None
+
+
+class KissIcpOdometry:
+    """Feeds clouds to KISS-ICP one at a time; remembers poses and times."""
+
+    def __init__(self, settings: KissIcpSettings) -> None:
+        from kiss_icp.kiss_icp import KissICP
+
+        self.settings = settings
+        self._icp = KissICP(settings.kiss_config())
+        self._times: list[float] = []
+        self._poses: list[np.ndarray] = []
+        covariance = np.diag([settings.rotation_sigma_rad**2] * 3 + [settings.translation_sigma_m**2] * 3)
+        self._covariance = covariance
+
+    def register(self, cloud: PointCloud) -> RegisteredFrame:
+        """Register one cloud (finite points, non-decreasing times across calls)."""
+        timestamps = normalized_point_times(cloud.point_times) if self.settings.deskew else np.zeros(0)
+        t = cloud.t + (float(np.max(cloud.point_times)) if timestamps.size else 0.0)
+        frame, _ = self._icp.register_frame(np.ascontiguousarray(cloud.points, dtype=np.float64), timestamps)
+        pose = np.array(self._icp.last_pose, dtype=float)
+        odometry = None
+        if self._poses:
+            relative = np.linalg.inv(self._poses[-1]) @ pose
+            odometry = Odometry(
+                t=t,
+                covariance=self._covariance.copy(),
+                relative_pose=np.concatenate([so3_log(relative[:3, :3]), relative[:3, 3]]),
+                dt=t - self._times[-1],
+            )
+        self._times.append(t)
+        self._poses.append(pose)
+        return RegisteredFrame(t=t, pose=pose, points=np.asarray(frame), odometry=odometry)
+
+    def trajectory(self) -> Trajectory:
+        """Poses so far (world = first body frame)."""
+        if not self._poses:
+            return Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+        return trajectory_from_homogeneous(np.array(self._times), np.array(self._poses))

@@ -1,0 +1,291 @@
+"""Write the synthetic lidar world as a ROS 1 or ROS 2 bag with rosbags' own Writer.
+
+Topics: ``/points`` (sensor_msgs/PointCloud2, organized beams x columns, NaN for misses,
+per-point time field), ``/imu`` (sensor_msgs/Imu), ``/ground_truth`` (nav_msgs/Odometry in
+ROS 1, geometry_msgs/PoseStamped in ROS 2, so both ground-truth types are exercised), and
+optionally ``/gps`` (sensor_msgs/NavSatFix). The two formats also use different point
+layouts: ROS 1 Velodyne-like (``time`` float32 seconds), ROS 2 Ouster-like (``t`` uint32
+nanoseconds). A cloud's header stamp is the time of its first column; it is logged at the
+end of its sweep, as a driver would, so bag order and stamp order differ.
+
+Frames: lidar = IMU = body, at ``height_m`` above the floor; world z-up.
+A sidecar JSON (``sidecar_path``) next to the bag holds the exact corners and the world
+polygons, so the lidar front end can score itself.
+"""
+
+from __future__ import annotations
+
+import heapq
+import json
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from datasets.errors import InputError
+from datasets.options import parse_options
+from datasets.synthetic_lidar.lidar import LidarModel, sweep
+from datasets.synthetic_lidar.path import LoopPath
+from datasets.synthetic_lidar.world import World, corridor_world
+from datasets.trajectory_io import write_atomic
+
+GRAVITY_M_S2 = 9.81
+EPOCH_S = 1_700_000_000
+LIDAR_TOPIC, IMU_TOPIC, GT_TOPIC, GPS_TOPIC = "/points", "/imu", "/ground_truth", "/gps"
+SIDECAR_FORMAT = "workbench-corners-1"
+
+# PointField datatype codes (sensor_msgs/PointField)
+_FLOAT32, _FLOAT64, _UINT16, _UINT32 = 7, 8, 4, 6
+
+
+class LidarBagOptions(BaseModel):
+    """Options of ``workbench simulate lidar-corridor`` (``--data key=value``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    duration_s: float = Field(8.0, gt=0, description="recording length [s]")
+    start_s: float = Field(0.0, ge=0, description="where along the loop to start, as time at speed [s]")
+    speed_m_s: float = Field(1.5, gt=0, description="vehicle speed [m/s] (the loop is 76.6 m)")
+    beams: int = Field(16, description="lidar beams: 16 or 32")
+    columns: int = Field(1024, ge=16, description="azimuth columns per revolution")
+    lidar_rate_hz: float = Field(10.0, gt=0, description="lidar revolutions per second")
+    range_sigma_m: float = Field(0.01, ge=0, description="lidar range noise std [m]")
+    imu_rate_hz: float = Field(200.0, gt=0, description="IMU rate [Hz]")
+    gyro_noise_density: float = Field(2e-4, ge=0, description="[rad/s/sqrt(Hz)]")
+    accel_noise_density: float = Field(2e-3, ge=0, description="[m/s^2/sqrt(Hz)]")
+    gt_rate_hz: float = Field(50.0, gt=0, description="ground-truth rate [Hz]")
+    gps_rate_hz: float = Field(0.0, ge=0, description="NavSatFix rate [Hz] (0: no GPS topic)")
+    gps_origin: tuple[float, float, float] = Field((48.137, 11.575, 520.0), description="lat [deg], lon [deg], alt [m] of the world origin")
+    storage: str = Field("sqlite3", pattern="^(sqlite3|mcap)$", description="ROS 2 storage plugin: sqlite3 or mcap")
+    time_field: str = Field("auto", pattern="^(auto|time|t|timestamp|offset_time|none)$", description="per-point time field (auto: time for ros1, t for ros2)")
+
+
+def sidecar_path(bag_path: Path) -> Path:
+    """The corner sidecar next to a bag: ``NAME.corners.json`` beside file or folder ``NAME``."""
+    bag_path = Path(bag_path)
+    return bag_path.parent / f"{bag_path.name}.corners.json"
+
+
+def _stamp(typestore, t: float):
+    ns = int(round((EPOCH_S + t) * 1e9))
+    return typestore.types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _header(typestore, ros1: bool, t: float, frame: str):
+    header_type = typestore.types["std_msgs/msg/Header"]
+    if ros1:
+        return header_type(seq=0, stamp=_stamp(typestore, t), frame_id=frame)
+    return header_type(stamp=_stamp(typestore, t), frame_id=frame)
+
+
+def _cloud_layout(time_field: str) -> tuple[np.dtype, list[tuple[str, int, int]]]:
+    """Structured dtype with padding, and its (name, offset, datatype) PointFields."""
+    fields = [("x", 0, _FLOAT32), ("y", 4, _FLOAT32), ("z", 8, _FLOAT32), ("intensity", 16, _FLOAT32), ("ring", 20, _UINT16)]
+    if time_field in ("time", "timestamp"):
+        fields.append((time_field, 24, _FLOAT64 if time_field == "timestamp" else _FLOAT32))
+    elif time_field in ("t", "offset_time"):
+        fields.append((time_field, 24, _UINT32))
+    numpy_type = {_FLOAT32: "<f4", _FLOAT64: "<f8", _UINT16: "<u2", _UINT32: "<u4"}
+    dtype = np.dtype({"names": [f[0] for f in fields], "formats": [numpy_type[f[2]] for f in fields], "offsets": [f[1] for f in fields], "itemsize": 32})
+    return dtype, fields
+
+
+def _quat_yaw(yaw: float) -> tuple[float, float, float, float]:
+    return float(np.cos(0.5 * yaw)), 0.0, 0.0, float(np.sin(0.5 * yaw))
+
+
+def enu_to_geodetic(enu: np.ndarray, origin: tuple[float, float, float]) -> np.ndarray:
+    """Local ENU [m] (N, 3) -> (lat [deg], lon [deg], alt [m]) on WGS-84 (inverse of
+    ``datasets.bags.gps.geodetic_to_enu``), by ECEF and Bowring-free fixed-point latitude."""
+    from datasets.bags.gps import ecef_from_geodetic, enu_rotation
+
+    lat0, lon0, alt0 = origin
+    origin_ecef = ecef_from_geodetic(np.array([[lat0, lon0, alt0]]))[0]
+    ecef = origin_ecef + np.asarray(enu) @ enu_rotation(lat0, lon0)
+    a, e2 = 6378137.0, 6.69437999014e-3
+    x, y, z = ecef.T
+    lon = np.arctan2(y, x)
+    p = np.hypot(x, y)
+    lat = np.arctan2(z, p * (1 - e2))
+    for _ in range(8):
+        n = a / np.sqrt(1 - e2 * np.sin(lat) ** 2)
+        alt = p / np.cos(lat) - n
+        lat = np.arctan2(z, p * (1 - e2 * n / (n + alt)))
+    n = a / np.sqrt(1 - e2 * np.sin(lat) ** 2)
+    alt = p / np.cos(lat) - n
+    return np.column_stack([np.rad2deg(lat), np.rad2deg(lon), alt])
+
+
+def _events(options: LidarBagOptions) -> Iterator[tuple[int, str, float]]:
+    """(log time ns, topic, stamp s) in log-time order. A cloud is logged at its sweep end."""
+    def stream(topic: str, rate: float, log_delay: float) -> Iterator[tuple[int, str, float]]:
+        count = int(np.floor(options.duration_s * rate + 1e-9))
+        for k in range(count):
+            stamp = k / rate
+            yield int(round((EPOCH_S + stamp + log_delay) * 1e9)), topic, stamp
+
+    streams = [stream(LIDAR_TOPIC, options.lidar_rate_hz, 1.0 / options.lidar_rate_hz), stream(IMU_TOPIC, options.imu_rate_hz, 0.0), stream(GT_TOPIC, options.gt_rate_hz, 0.0)]
+    if options.gps_rate_hz > 0:
+        streams.append(stream(GPS_TOPIC, options.gps_rate_hz, 0.0))
+    return heapq.merge(*streams)
+
+
+def write_sidecar(bag_path: Path, world: World, model: LidarModel, options: LidarBagOptions) -> Path:
+    """Exact corners (world frame, at the sensor height) and the world polygons as JSON."""
+    positions, normals, heights = world.corners()
+    payload = {
+        "format": SIDECAR_FORMAT,
+        "frame": "world (the ground-truth topic's frame), z-up",
+        "slab_height_m": model.height_m,
+        "max_range_m": model.max_range_m,
+        "corners": [
+            {"id": int(i), "position": [float(p[0]), float(p[1]), model.height_m], "face_normals": normals[i].tolist(), "height_m": float(heights[i])}
+            for i, p in enumerate(positions)
+        ],
+        "polygons": [{"kind": polygon.kind, "height_m": polygon.height_m, "vertices": polygon.vertices.tolist()} for polygon in world.polygons],
+        "options": options.model_dump(),
+    }
+    return write_atomic(sidecar_path(bag_path), json.dumps(payload, indent=1))
+
+
+def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> Path:
+    """``workbench simulate lidar-corridor``: write the corridor world as a bag, return its path.
+
+    Args:
+        out: ``.bag`` file (ROS 1; the suffix is added if missing) or bag folder (ROS 2);
+            must not exist yet.
+        seed: noise seed.
+        fmt: ``ros1`` or ``ros2``.
+        options: ``LidarBagOptions`` as ``key=value`` strings.
+    """
+    from rosbags.typesys import Stores, get_typestore
+
+    settings = parse_options(LidarBagOptions, options, "simulate lidar-corridor")
+    if fmt not in ("ros1", "ros2"):
+        raise InputError(f"simulate lidar-corridor: --format must be ros1 or ros2, got '{fmt}'")
+    if settings.beams not in (16, 32):
+        raise InputError(f"simulate lidar-corridor: beams must be 16 or 32, got {settings.beams}")
+    out = Path(out)
+    if fmt == "ros1" and out.suffix != ".bag":
+        out = out.with_name(out.name + ".bag")
+    if out.exists():
+        raise InputError(f"{out}: exists already; choose a new path")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    ros1 = fmt == "ros1"
+    typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    time_field = settings.time_field if settings.time_field != "auto" else ("time" if ros1 else "t")
+    model = LidarModel(beams=settings.beams, columns=settings.columns, rate_hz=settings.lidar_rate_hz, range_sigma_m=settings.range_sigma_m)
+    world, path = corridor_world(), LoopPath(speed_m_s=settings.speed_m_s)
+    rng = np.random.default_rng(seed)
+    serialize = typestore.serialize_ros1 if ros1 else typestore.serialize_cdr
+    types = typestore.types
+    dtype, layout = _cloud_layout(time_field)
+
+    # Written under a temporary name and renamed when complete: an interrupted run never
+    # leaves a bag that looks whole.
+    temp = out.parent / f".{out.name}.partial"
+    if temp.is_dir():
+        shutil.rmtree(temp)
+    temp.unlink(missing_ok=True)
+    if ros1:
+        from rosbags.rosbag1 import Writer as Writer1
+
+        writer = Writer1(temp)
+    else:
+        from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+
+        plugin = StoragePlugin.MCAP if settings.storage == "mcap" else StoragePlugin.SQLITE3
+        writer = Writer2(temp, version=9, storage_plugin=plugin)
+    gt_type = "nav_msgs/msg/Odometry" if ros1 else "geometry_msgs/msg/PoseStamped"
+    with writer:
+        connections = {
+            LIDAR_TOPIC: writer.add_connection(LIDAR_TOPIC, "sensor_msgs/msg/PointCloud2", typestore=typestore),
+            IMU_TOPIC: writer.add_connection(IMU_TOPIC, "sensor_msgs/msg/Imu", typestore=typestore),
+            GT_TOPIC: writer.add_connection(GT_TOPIC, gt_type, typestore=typestore),
+        }
+        if settings.gps_rate_hz > 0:
+            connections[GPS_TOPIC] = writer.add_connection(GPS_TOPIC, "sensor_msgs/msg/NavSatFix", typestore=typestore)
+        imu_gyro_std = settings.gyro_noise_density * np.sqrt(settings.imu_rate_hz)
+        imu_accel_std = settings.accel_noise_density * np.sqrt(settings.imu_rate_hz)
+        zeros9 = np.zeros(9)
+        for log_ns, topic, stamp in _events(settings):
+            t = settings.start_s + stamp
+            header = _header(typestore, ros1, stamp, "base_link" if topic != GT_TOPIC else "world")
+            if topic == LIDAR_TOPIC:
+                scan = sweep(world, path, model, t, rng)
+                cloud = np.zeros(scan.points.shape[:2], dtype=dtype)
+                cloud["x"], cloud["y"], cloud["z"] = (scan.points[..., k] for k in range(3))
+                with np.errstate(invalid="ignore"):
+                    cloud["intensity"] = np.nan_to_num(100.0 / np.linalg.norm(scan.points, axis=-1))
+                cloud["ring"] = scan.ring[:, None]
+                offsets = np.broadcast_to(scan.column_times[None], cloud.shape)
+                if time_field in ("t", "offset_time"):
+                    cloud[time_field] = np.round(offsets * 1e9).astype(np.uint32)
+                elif time_field == "timestamp":  # absolute seconds (Hesai-like)
+                    cloud[time_field] = EPOCH_S + stamp + offsets
+                elif time_field == "time":
+                    cloud[time_field] = offsets
+                fields = [types["sensor_msgs/msg/PointField"](name=name, offset=offset, datatype=datatype, count=1) for name, offset, datatype in layout]
+                message = types["sensor_msgs/msg/PointCloud2"](
+                    header=header, height=cloud.shape[0], width=cloud.shape[1], fields=fields, is_bigendian=False,
+                    point_step=dtype.itemsize, row_step=dtype.itemsize * cloud.shape[1],
+                    data=np.frombuffer(cloud.tobytes(), dtype=np.uint8), is_dense=False,
+                )
+            elif topic == IMU_TOPIC:
+                motion = path.sample(np.array([t]))
+                yaw = motion.yaw[0]
+                c, s = np.cos(yaw), np.sin(yaw)
+                accel_world = np.array([motion.acceleration[0, 0], motion.acceleration[0, 1], GRAVITY_M_S2])
+                accel_body = np.array([c * accel_world[0] + s * accel_world[1], -s * accel_world[0] + c * accel_world[1], accel_world[2]])
+                gyro = np.array([0.0, 0.0, motion.yaw_rate[0]]) + rng.normal(0, imu_gyro_std, 3)
+                accel_body = accel_body + rng.normal(0, imu_accel_std, 3)
+                vec = types["geometry_msgs/msg/Vector3"]
+                message = types["sensor_msgs/msg/Imu"](
+                    header=header,
+                    orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                    orientation_covariance=np.array([-1.0] + [0.0] * 8),
+                    angular_velocity=vec(x=gyro[0], y=gyro[1], z=gyro[2]),
+                    angular_velocity_covariance=zeros9 + np.eye(3).ravel() * imu_gyro_std**2,
+                    linear_acceleration=vec(x=accel_body[0], y=accel_body[1], z=accel_body[2]),
+                    linear_acceleration_covariance=zeros9 + np.eye(3).ravel() * imu_accel_std**2,
+                )
+            elif topic == GT_TOPIC:
+                motion = path.sample(np.array([t]))
+                w, x, y, z = _quat_yaw(motion.yaw[0])
+                pose = types["geometry_msgs/msg/Pose"](
+                    position=types["geometry_msgs/msg/Point"](x=float(motion.position[0, 0]), y=float(motion.position[0, 1]), z=model.height_m),
+                    orientation=types["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w),
+                )
+                if ros1:
+                    vec = types["geometry_msgs/msg/Vector3"]
+                    speed = float(np.linalg.norm(motion.velocity[0]))
+                    twist = types["geometry_msgs/msg/TwistWithCovariance"](
+                        twist=types["geometry_msgs/msg/Twist"](linear=vec(x=speed, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=float(motion.yaw_rate[0]))),
+                        covariance=np.zeros(36),
+                    )
+                    message = types["nav_msgs/msg/Odometry"](
+                        header=header, child_frame_id="base_link",
+                        pose=types["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)), twist=twist,
+                    )
+                else:
+                    message = types["geometry_msgs/msg/PoseStamped"](header=header, pose=pose)
+            else:  # GPS
+                motion = path.sample(np.array([t]))
+                lat, lon, alt = enu_to_geodetic(np.array([[motion.position[0, 0], motion.position[0, 1], model.height_m]]), settings.gps_origin)[0]
+                status = types["sensor_msgs/msg/NavSatStatus"](status=0, service=1)
+                message = types["sensor_msgs/msg/NavSatFix"](
+                    header=header, status=status, latitude=float(lat), longitude=float(lon), altitude=float(alt),
+                    position_covariance=np.eye(3).ravel() * 1e-4, position_covariance_type=2,
+                )
+            writer.write(connections[topic], log_ns, serialize(message, message.__msgtype__))
+    if not ros1:  # rosbag2 names its storage file after the folder
+        for stored in temp.iterdir():
+            if stored.name.startswith(temp.name):
+                stored.rename(temp / stored.name.replace(temp.name, out.name, 1))
+        metadata = temp / "metadata.yaml"
+        metadata.write_text(metadata.read_text().replace(temp.name, out.name))
+    temp.rename(out)
+    write_sidecar(out, world, model, settings)
+    return out
