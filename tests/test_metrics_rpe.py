@@ -109,3 +109,45 @@ def test_kitti_segments_measure_heading_drift_per_100m() -> None:
 def test_kitti_segments_are_undefined_on_short_paths() -> None:
     truth = _straight_line(50.0, 1.0)
     assert kitti_segment_errors(truth, truth) == {"translation_percent": None, "rotation_deg_per_100m": None, "segments": 0}
+
+
+def _devkit_port(reference: Trajectory, estimate: Trajectory) -> tuple[float, float]:
+    """A literal port of the KITTI devkit's calcSequenceErrors + averaging (acos angle)."""
+    gt, result = reference.homogeneous(), estimate.homogeneous()
+    dist = [0.0]
+    for i in range(1, len(gt)):
+        dist.append(dist[-1] + float(np.linalg.norm(gt[i, :3, 3] - gt[i - 1, :3, 3])))
+    t_errs, r_errs = [], []
+    for first in range(0, len(gt), 10):
+        for length in (100, 200, 300, 400, 500, 600, 700, 800):
+            last = next((i for i in range(first, len(dist)) if dist[i] > dist[first] + length), -1)
+            if last == -1:
+                continue
+            delta_gt = np.linalg.inv(gt[first]) @ gt[last]
+            delta_result = np.linalg.inv(result[first]) @ result[last]
+            error = np.linalg.inv(delta_result) @ delta_gt
+            r_errs.append(np.arccos(max(min(0.5 * (np.trace(error[:3, :3]) - 1.0), 1.0), -1.0)) / length)
+            t_errs.append(np.linalg.norm(error[:3, 3]) / length)
+    return 100.0 * float(np.mean(t_errs)), 100.0 * float(np.rad2deg(np.mean(r_errs)))
+
+
+def test_kitti_segments_equal_a_literal_devkit_port() -> None:
+    rng = np.random.default_rng(23)
+    count = 600
+    steps = np.column_stack([np.full(count, 1.0), rng.normal(0, 0.2, (count, 2))])
+    truth = Trajectory(
+        np.arange(count) * 0.1,
+        np.cumsum(steps, axis=0),
+        quat_wxyz_from_rotation(Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.01, (count, 3)), axis=0))),
+    )
+    drift = Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.002, (count, 3)), axis=0))
+    estimate = Trajectory(
+        truth.t,
+        truth.positions + np.cumsum(rng.normal(0, 0.05, (count, 3)), axis=0),
+        quat_wxyz_from_rotation(Rotation.from_quat(truth.rotations[:, [1, 2, 3, 0]]) * drift),
+    )
+    result = kitti_segment_errors(truth, estimate)
+    translation, rotation = _devkit_port(truth, estimate)
+    assert result["segments"] > 100
+    assert result["translation_percent"] == pytest.approx(translation, rel=1e-9)
+    assert result["rotation_deg_per_100m"] == pytest.approx(rotation, rel=1e-6)

@@ -176,23 +176,24 @@ def kitti_segment_errors(
     """
     reference, estimate = lift_to_3d(reference), lift_to_3d(estimate)
     distances = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(reference.positions, axis=0), axis=1))])
-    firsts, lasts, lengths = [], [], []
-    for first in range(0, len(reference), step):
-        for length in lengths_m:
-            # First frame whose travelled distance exceeds the segment length (devkit's
-            # lastFrameFromSegmentLength, strict ">").
-            last = int(np.searchsorted(distances, distances[first] + length, side="right"))
-            if last < len(reference):
-                firsts.append(first)
-                lasts.append(last)
-                lengths.append(length)
-    if not firsts:
+    starts = np.arange(0, len(reference), step)
+    first_parts, last_parts, length_parts = [], [], []
+    for length in lengths_m:
+        # First frame whose travelled distance exceeds the segment length (devkit's
+        # lastFrameFromSegmentLength, strict ">").
+        ends = np.searchsorted(distances, distances[starts] + length, side="right")
+        found = ends < len(reference)
+        first_parts.append(starts[found])
+        last_parts.append(ends[found])
+        length_parts.append(np.full(int(np.sum(found)), length))
+    firsts, lasts = np.concatenate(first_parts), np.concatenate(last_parts)
+    if len(firsts) == 0:
         return {"translation_percent": None, "rotation_deg_per_100m": None, "segments": 0}
     pairs = np.column_stack([firsts, lasts])
     # The devkit's error (P_rel^-1 Q_rel) is the inverse of evo's (Q_rel^-1 P_rel): same
     # angle; the translation norms differ by a rotation only, so the norm is the same too.
     trans, rot = relative_errors(reference.homogeneous(), estimate.homogeneous(), pairs)
-    lengths_array = np.array(lengths)
+    lengths_array = np.concatenate(length_parts)
     return {
         "translation_percent": float(100.0 * np.mean(trans / lengths_array)),
         "rotation_deg_per_100m": float(100.0 * np.rad2deg(np.mean(rot / lengths_array))),

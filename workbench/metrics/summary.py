@@ -14,6 +14,8 @@ files):
     trajectory is aligned with one of the equally good minimisers), ``ate_rmse_raw_m`` (no
     alignment), ``rpe_trans_rmse_m`` and ``rpe_rot_rmse_deg`` (1-frame RPE),
     ``final_orientation_error_deg`` (Aghili eq. (43) at the last pose the truth covers),
+    ``kitti_translation_percent`` and ``kitti_rotation_deg_per_100m`` (KITTI segments of
+    100..800 m from every 10th paired pose, None on paths shorter than 100 m),
     ``gps_holdout_rmse_m`` (estimated positions interpolated linearly at
     ``GroundTruth.held_out_positions`` stamps inside the estimate's span, no alignment).
 consistency (``state_errors.nees_series``: truth looked up at the estimate's times):
@@ -54,7 +56,7 @@ from workbench.metrics.data_association import (
     true_ids_of_records,
 )
 from workbench.metrics.orientation import orientation_error_rad, planar_orientation_error_rad
-from workbench.metrics.rpe import rpe_errors
+from workbench.metrics.rpe import kitti_segment_errors, rpe_errors
 from workbench.metrics.state_errors import landmark_errors, landmark_nees_series, nees_series, truth_pose_at
 from workbench.metrics.timestamps import vectors_at
 
@@ -66,6 +68,8 @@ ACCURACY_KEYS = (
     "rpe_trans_rmse_m",
     "rpe_rot_rmse_deg",
     "final_orientation_error_deg",
+    "kitti_translation_percent",
+    "kitti_rotation_deg_per_100m",
     "gps_holdout_rmse_m",
 )
 CONSISTENCY_KEYS = (
@@ -127,6 +131,9 @@ def accuracy_metrics(pose: Trajectory | None, ground_truth: GroundTruth | None) 
         _, trans, rot_deg = rpe_errors(reference, estimate, 1, "frames")
         metrics["rpe_trans_rmse_m"] = _rmse(trans)
         metrics["rpe_rot_rmse_deg"] = _rmse(rot_deg)
+        kitti = kitti_segment_errors(reference, estimate)
+        metrics["kitti_translation_percent"] = _number(kitti["translation_percent"])
+        metrics["kitti_rotation_deg_per_100m"] = _number(kitti["rotation_deg_per_100m"])
     metrics["final_orientation_error_deg"] = _final_orientation_error_deg(pose, ground_truth)
     return metrics
 
