@@ -221,6 +221,9 @@ def test_walls_occlude_corners():
             assert not set(scan.ids) & set(central_block_top)
     counts = np.array([scan.count for scan in scans_of(sequence)])
     assert np.mean(counts >= 2) > 0.95
+    # The vehicle itself never passes through a wall.
+    path = truth.pose.positions[::5]
+    assert not any(segments_cross(p, q, a, b) for p, q in zip(path, path[1:]) for a, b in plan.walls)
 
 
 def whitened_errors(scenario: str, options: dict[str, str]) -> tuple[np.ndarray, int]:
