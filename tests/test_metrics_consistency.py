@@ -156,3 +156,17 @@ def test_landmark_nees_in_world_and_body_frames_uses_the_mapping() -> None:
     np.testing.assert_allclose(series["landmarks"].nees, [1.0, 1.0, 4.0, 4.0], rtol=1e-9)
     np.testing.assert_array_equal(series["landmarks"].dof, [3, 3, 3, 3])
     np.testing.assert_array_equal(series["landmarks"].t, [1.0, 1.0, 2.0, 2.0])
+
+
+def test_time_averaged_nis_of_gaussian_innovations_detects_a_scaled_innovation_covariance() -> None:
+    rng = np.random.default_rng(46)
+    count, dof = 500, 2
+    covariances = _random_covariances(rng, count, dof)
+    innovations = _gaussian_errors(rng, covariances)
+    # Time average of K NIS values: K * mean ~ chi2(K n), bounds chi2_interval(n, runs=K).
+    low, high = chi2_interval(dof, runs=count)
+    assert low <= np.mean(nees(innovations, covariances)) <= high
+    assert np.mean(nees(innovations, 4.0 * covariances)) < low
+    assert np.mean(nees(innovations, 0.25 * covariances)) > high
+    assert below_fraction(nees(innovations, covariances), dof) == pytest.approx(0.95, abs=0.03)
+    assert below_fraction(nees(innovations, 0.25 * covariances), dof) < 0.75
