@@ -11,6 +11,7 @@ import pytest
 
 from datasets import BlockName, GyroSample, ImuSample, InputError, LandmarkScan, Sensor
 from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
+from datasets.simulation.figures import sequence_figures
 from datasets.simulation.floor_plan import ring_corridor_building
 from datasets.simulation.folder_format import read_sequence_folder, write_sequence_folder
 from datasets.simulation.imu import kitti_imu_sigmas
@@ -330,6 +331,8 @@ def test_empty_scans_are_emitted_with_zero_rows():
     scans = scans_of(sequence)
     assert len(scans) == 21
     assert all(scan.count == 0 and scan.points.shape == (0, 3) and scan.covariances.shape == (0, 3, 3) for scan in scans)
+    figures = sequence_figures(sequence)
+    assert figures["scans"] == 21 and figures["visible_max"] == 0 and figures["path_length_m"] == 0.0
 
 
 @pytest.mark.parametrize(

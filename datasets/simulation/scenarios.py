@@ -349,6 +349,8 @@ _SCENARIOS: dict[str, tuple[type[BaseModel], Callable[[int, BaseModel], Sequence
     "static": (StaticOptions, static, "3-D vehicle at rest (tilted), IMU 100 Hz + landmarks, 60 s"),
 }
 
+SCENARIO_NAMES: tuple[str, ...] = tuple(_SCENARIOS)
+
 
 def load_scenario(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
     """Simulate scenario ``argument`` with noise ``seed`` and ``--data`` options."""
