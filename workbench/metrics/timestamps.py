@@ -172,7 +172,8 @@ def trajectory_at(truth: Trajectory, query_times: np.ndarray) -> tuple[Trajector
         rotations = _slerp_pairs(truth.rotations[lower], truth.rotations[upper], weight)
     else:
         step = wrap_angle(truth.rotations[upper] - truth.rotations[lower])
-        rotations = np.asarray(wrap_angle(truth.rotations[lower] + weight * step), dtype=float)
+        interpolated = np.asarray(wrap_angle(truth.rotations[lower] + weight * step), dtype=float)
+        rotations = np.where(weight == 0.0, truth.rotations[lower], interpolated)
     return Trajectory(t=query_times[valid], positions=positions, rotations=rotations), valid
 
 
