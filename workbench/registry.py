@@ -124,6 +124,22 @@ DATASETS: tuple[DatasetEntry, ...] = (
         examples=("kitti-imu-gps",),
         describe_target="datasets.kitti_imu_gps:describe",
     ),
+    DatasetEntry(
+        "bag",
+        "datasets.bags.source:load_bag",
+        "ROS 1 .bag / ROS 2 bag (sqlite3, mcap): clouds, IMU, GPS; KISS-ICP odometry and corner landmarks; truth from an Odometry/PoseStamped topic",
+        argument="PATH",
+        examples=("bag:corridor.bag",),
+        describe_target="datasets.bags.source:describe",
+    ),
+    DatasetEntry(
+        "scans",
+        "datasets.scan_folder:load_scans",
+        "folder of KITTI .bin / .pcd / .ply scans (optional times.txt): KISS-ICP odometry and corner landmarks",
+        argument="FOLDER",
+        examples=("scans:velodyne/",),
+        describe_target="datasets.scan_folder:describe",
+    ),
 )
 
 

@@ -104,13 +104,13 @@ def decode_pointcloud2(message, stamp_s: float, where: str, time_unit: str = "au
     finite = np.isfinite(points).all(axis=1)
     times = None
     if time_field:
-        times = _relative_seconds(records[time_field], stamp_s, time_unit)
+        times = relative_point_seconds(records[time_field], stamp_s, time_unit)
         finite &= np.isfinite(times)
         times = times[finite]
     return DecodedCloud(points[finite], times, int(finite.size - np.count_nonzero(finite)), time_field)
 
 
-def _relative_seconds(values: np.ndarray, stamp_s: float, time_unit: str) -> np.ndarray:
+def relative_point_seconds(values: np.ndarray, stamp_s: float, time_unit: str) -> np.ndarray:
     """Per-point times as seconds relative to the header stamp (see the module docstring)."""
     integer = values.dtype.kind in "iu"
     values = values.astype(np.float64)

@@ -84,23 +84,24 @@ class Corners:
         return LandmarkScan(t=t, points=self.points, covariances=self.covariances, directions=self.directions)
 
 
-def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Slab points reduced to the nearest point per azimuth bin (steps 1-2).
-
-    Returns:
-        xy (m, 2) [m] ordered by azimuth, and their bin indices (m,).
-    """
+def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> np.ndarray:
+    """Indices of the slab points that make the azimuth scan (steps 1-2): the nearest point
+    per azimuth bin, ordered by azimuth."""
     z = points[:, 2]
-    xy = points[:, :2]
-    rng = np.hypot(xy[:, 0], xy[:, 1])
-    keep = (np.abs(z - config.slab_height_m) <= config.slab_half_thickness_m) & (rng >= config.min_range_m) & (rng <= config.max_range_m)
-    xy, rng = xy[keep], rng[keep]
-    bins = np.floor((np.arctan2(xy[:, 1], xy[:, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)).astype(np.int64)
-    order = np.lexsort((rng, bins))
+    rng = np.hypot(points[:, 0], points[:, 1])
+    keep = np.flatnonzero((np.abs(z - config.slab_height_m) <= config.slab_half_thickness_m) & (rng >= config.min_range_m) & (rng <= config.max_range_m))
+    bins = np.floor((np.arctan2(points[keep, 1], points[keep, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)).astype(np.int64)
+    order = np.lexsort((rng[keep], bins))
     first = np.ones(order.size, dtype=bool)
     first[1:] = bins[order][1:] != bins[order][:-1]
-    chosen = order[first]
-    return xy[chosen], bins[chosen]
+    return keep[order[first]]
+
+
+def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The azimuth scan: xy (m, 2) [m] ordered by azimuth, and their bin indices (m,)."""
+    xy = points[azimuth_scan_indices(points, config), :2]
+    bins = np.floor((np.arctan2(xy[:, 1], xy[:, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)).astype(np.int64)
+    return xy, bins
 
 
 def _cluster_breaks(xy: np.ndarray, bins: np.ndarray, config: CornerConfig) -> np.ndarray:

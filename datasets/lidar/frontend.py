@@ -17,8 +17,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
-from datasets.lidar.corners import CornerConfig, Corners, extract_corners
-from datasets.lidar.kiss_icp_odometry import KissIcpOdometry, KissIcpSettings
+from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, extract_corners
+from datasets.lidar.kiss_icp_odometry import KissIcpOdometry, KissIcpSettings, deskew_to_end, normalized_point_times
 from datasets.measurements import Odometry, PointCloud
 from datasets.trajectory import Trajectory
 
@@ -76,15 +76,28 @@ class LidarFrontEnd:
         if index != len(self.frames):
             raise InputError(f"lidar front end: frame {index} requested before frame {len(self.frames)}")
         started = time.perf_counter()
-        pose, odometry, points, t = None, None, cloud.points, cloud.t
+        pose, odometry, t = None, None, cloud.t
         if self._odometry is not None:
             registered = self._odometry.register(cloud)
-            pose, odometry, points, t = registered.pose, registered.odometry, registered.points, registered.t
+            pose, odometry, t = registered.pose, registered.odometry, registered.t
         icp_done = time.perf_counter()
-        corners = extract_corners(points, self.settings.corner) if self.settings.corners else None
+        corners = self._corners(cloud, odometry) if self.settings.corners else None
         result = FrontEndFrame(cloud.t, t, len(cloud.points), pose, odometry, corners, icp_done - started, time.perf_counter() - icp_done)
         self.frames.append(result)
         return result
+
+    def _corners(self, cloud: PointCloud, odometry: Odometry | None) -> Corners:
+        """Corners of the slab points, deskewed to the frame's pose time with the frame's own
+        estimated motion (better than KISS-ICP's deskew by the previous frame's motion, which
+        lags when the vehicle turns; without odometry or times, the raw slab points)."""
+        config = self.settings.corner
+        # Reduce to the azimuth scan first (about one point per bin) and deskew only those.
+        chosen = azimuth_scan_indices(cloud.points, config)
+        points = cloud.points[chosen]
+        times = normalized_point_times(cloud.point_times)
+        if odometry is not None and times.size and self.settings.kiss.deskew:
+            points = deskew_to_end(points, times[chosen], self._odometry.last_delta())
+        return extract_corners(points, config)
 
     def trajectory(self) -> Trajectory | None:
         """KISS-ICP poses of the frames so far (world = first body frame), or None."""

@@ -113,8 +113,57 @@ class KissIcpOdometry:
         self._poses.append(pose)
         return RegisteredFrame(t=t, pose=pose, points=np.asarray(frame), odometry=odometry)
 
+    def last_delta(self) -> np.ndarray:
+        """(4, 4) motion of the last frame, previous pose^-1 @ last pose (identity at first)."""
+        if len(self._poses) < 2:
+            return np.eye(4)
+        return np.linalg.inv(self._poses[-2]) @ self._poses[-1]
+
     def trajectory(self) -> Trajectory:
         """Poses so far (world = first body frame)."""
         if not self._poses:
             return Trajectory(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
         return trajectory_from_homogeneous(np.array(self._times), np.array(self._poses))
+
+
+def se3_log(pose: np.ndarray) -> np.ndarray:
+    """Twist (rho (3,), phi (3,)) of a (4, 4) pose: ``pose = exp([rho, phi]^)``."""
+    phi = so3_log(pose[:3, :3])
+    theta = float(np.linalg.norm(phi))
+    w = _hat(phi)
+    if theta < 1e-9:
+        v_inverse = np.eye(3) - 0.5 * w
+    else:
+        half = 0.5 * theta
+        v_inverse = np.eye(3) - 0.5 * w + (1.0 - half * np.cos(half) / np.sin(half)) / theta**2 * (w @ w)
+    return np.concatenate([v_inverse @ pose[:3, 3], phi])
+
+
+def _hat(vector: np.ndarray) -> np.ndarray:
+    x, y, z = vector
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def deskew_to_end(points: np.ndarray, normalized_times: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Move points to the sweep end under constant velocity, as KISS-ICP's deskew does
+    (``p' = exp((s - 1) xi) p`` with ``xi = log(delta)``, s the normalized time), but with
+    the frame's own estimated motion ``delta`` (previous pose^-1 @ this pose) instead of the
+    prediction. Vectorized SE(3) exponential: ``R = Exp(a phi)``,
+    ``t = V(a phi) a rho`` with ``V(w) = I + (1 - cos q)/q^2 [w] + (q - sin q)/q^3 [w]^2``.
+
+    Args:
+        points: (n, 3) [m]; normalized_times: (n,) in [0, 1]; delta: (4, 4).
+    """
+    from scipy.spatial.transform import Rotation
+
+    xi = se3_log(delta)
+    scale = (np.asarray(normalized_times, dtype=float) - 1.0)[:, None]
+    phi, rho = scale * xi[3:], scale * xi[:3]
+    theta = np.linalg.norm(phi, axis=1)
+    small = theta < 1e-9
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 0.5, (1.0 - np.cos(safe)) / safe**2)
+    b = np.where(small, 1.0 / 6.0, (safe - np.sin(safe)) / safe**3)
+    cross1 = np.cross(phi, rho)
+    translation = rho + a[:, None] * cross1 + b[:, None] * np.cross(phi, cross1)
+    return Rotation.from_rotvec(phi).apply(points) + translation
