@@ -8,6 +8,13 @@ std ``density * sqrt(f)``; a bias random walk moves by ``walk * sqrt(dt)`` per s
 Initial biases are drawn from N(0, sigma_b0^2). Samples are instantaneous values at their
 time stamps (not averages over the interval), and the bias at sample k is the true bias
 reported by the ground truth at the same time.
+
+Integrate them with a second-order scheme (trapezoid of the bounding samples, or the
+midpoint value): noise-free, that reproduces the truth (tests: < 1e-4 m after 10 s at
+1 kHz). A zero-order hold is first-order in dt and drifts at low rates: on the noise-free
+``aghili-rover`` at 20 Hz, holding the sample at t_k over [t_k, t_k+1] gives a position
+error of 25.5 m RMS over the lap, and the sample at t_k+1 rotated by the attitude at t_k
+18.9 m RMS.
 """
 
 from __future__ import annotations
