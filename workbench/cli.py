@@ -31,6 +31,7 @@ app = typer.Typer(
 COMMAND_MODULES: tuple[str, ...] = (
     "workbench.commands.metrics",
     "workbench.commands.bench",
+    "workbench.commands.bag",
 )
 
 SetOption = Annotated[Optional[list[str]], typer.Option("--set", help="estimator option key=value (repeatable)")]

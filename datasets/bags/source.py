@@ -45,6 +45,12 @@ class BagOptions(BaseModel):
     imu: bool = Field(True, description="use the IMU topic when there is one")
     gps: bool = Field(True, description="use the NavSatFix topic when there is one")
     gps_sigma_m: float = Field(1.0, gt=0, description="GPS std when a fix carries no covariance [m]")
+    gyro_noise_density: float | None = Field(None, gt=0, description="[rad/s/sqrt(Hz)] (default: from the Imu covariance, else 1.7e-4)")
+    accel_noise_density: float | None = Field(None, gt=0, description="[m/s^2/sqrt(Hz)] (default: from the Imu covariance, else 2e-3)")
+    gyro_bias_walk: float = Field(2e-5, gt=0, description="gyro bias random walk [rad/s^2/sqrt(Hz)] (bags do not say; a MEMS-class value)")
+    accel_bias_walk: float = Field(3e-4, gt=0, description="accelerometer bias random walk [m/s^3/sqrt(Hz)] (bags do not say)")
+    gyro_bias_sigma_rad_s: float = Field(0.01, gt=0, description="std of the initial gyro bias [rad/s]")
+    accel_bias_sigma_m_s2: float = Field(0.1, gt=0, description="std of the initial accelerometer bias [m/s^2]")
     point_time_unit: str = Field("auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times")
     reorder_window_s: float = Field(1.0, ge=0, description="how far stamps may lag bag order and still be reordered [s]")
     point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
@@ -138,10 +144,10 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             log.warning("%s: %s has no valid fix; GPS not used", path, gps_topic)
             gps_topic = None
         start_s = reader.start_time * 1e-9
-        rates = {"lidar": reader.topics[topics.lidar].msgcount / max((reader.end_time - reader.start_time) * 1e-9, 1e-9)}
+        rates = {"lidar": float(reader.topics[topics.lidar].msgcount / max((reader.end_time - reader.start_time) * 1e-9, 1e-9))}
         imu_rate, gyro_density, accel_density = _imu_noise(reader, imu_topic, path)
         if imu_rate:
-            rates["imu"] = imu_rate
+            rates["imu"] = float(imu_rate)
     load_report = ReadReport()
     gt = read_ground_truth(path, topics.ground_truth, load_report) if topics.ground_truth else (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
     sidecar = sidecar_for(path)
@@ -165,7 +171,12 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     sensors |= {Sensor.ODOMETRY} if settings.odometry else set()
     sensors |= {Sensor.LANDMARKS} if settings.corners else set()
     noise = NoiseSpec(
-        gyro_noise_density=gyro_density, accel_noise_density=accel_density,
+        gyro_noise_density=settings.gyro_noise_density or (float(gyro_density) if gyro_density else 1.7e-4) if imu_topic else None,
+        accel_noise_density=settings.accel_noise_density or (float(accel_density) if accel_density else 2e-3) if imu_topic else None,
+        gyro_bias_walk=settings.gyro_bias_walk if imu_topic else None,
+        accel_bias_walk=settings.accel_bias_walk if imu_topic else None,
+        gyro_bias_sigma_rad_s=settings.gyro_bias_sigma_rad_s if imu_topic else None,
+        accel_bias_sigma_m_s2=settings.accel_bias_sigma_m_s2 if imu_topic else None,
         landmark_sigma_m=settings.corner.range_sigma_m, gps_sigma_m=settings.gps_sigma_m if gps_topic else None, rate_hz=rates,
     )
     return Sequence(

@@ -30,7 +30,7 @@ class KissIcpSettings(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    max_range_m: float = Field(60.0, gt=0, description="farthest point used [m]")
+    max_range_m: float = Field(30.0, gt=0, description="farthest point used [m] (indoor/corridor default; outdoor bags: 100)")
     min_range_m: float = Field(0.5, ge=0, description="nearest point used [m]")
     voxel_size_m: float | None = Field(None, gt=0, description="map voxel [m] (default: max_range / 100, as KISS-ICP)")
     deskew: bool = Field(True, description="motion-compensate with per-point times when the cloud has them")

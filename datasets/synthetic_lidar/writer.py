@@ -25,6 +25,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
+from datasets.lidar.corner_truth import SIDECAR_FORMAT, sidecar_for
 from datasets.options import parse_options
 from datasets.synthetic_lidar.lidar import LidarModel, sweep
 from datasets.synthetic_lidar.path import LoopPath
@@ -34,7 +35,6 @@ from datasets.trajectory_io import write_atomic
 GRAVITY_M_S2 = 9.81
 EPOCH_S = 1_700_000_000
 LIDAR_TOPIC, IMU_TOPIC, GT_TOPIC, GPS_TOPIC = "/points", "/imu", "/ground_truth", "/gps"
-SIDECAR_FORMAT = "workbench-corners-1"
 
 # PointField datatype codes (sensor_msgs/PointField)
 _FLOAT32, _FLOAT64, _UINT16, _UINT32 = 7, 8, 4, 6
@@ -64,8 +64,7 @@ class LidarBagOptions(BaseModel):
 
 def sidecar_path(bag_path: Path) -> Path:
     """The corner sidecar next to a bag: ``NAME.corners.json`` beside file or folder ``NAME``."""
-    bag_path = Path(bag_path)
-    return bag_path.parent / f"{bag_path.name}.corners.json"
+    return sidecar_for(bag_path)
 
 
 def _stamp(typestore, t: float):

@@ -1,0 +1,243 @@
+"""``workbench bag PATH --out DIR``: a lidar bag end to end.
+
+1. Reads the bag (``bag:PATH``) and runs the front end (KISS-ICP, corners) once, with a
+   progress bar in frames per second; writes ``DIR/frontend/``: ``kiss_icp.tum``,
+   ``corners.csv`` (every detection with its covariance), ``metrics.json`` (frames, times,
+   ``kiss_icp_ate_rmse_m`` when the bag has ground truth, ``corner_precision`` and
+   ``corner_recall`` when a corner sidecar lies next to the bag, counted skips).
+2. Runs each chosen estimator (default: every registered one the bag's sensors allow) on the
+   resulting stream (the front end is cached, so it runs once) and writes ``DIR/<name>/``
+   run folders with the workbench runner.
+3. Writes ``DIR/table.md`` and ``DIR/table.csv``: one row for KISS-ICP, one per estimator.
+
+Every file is written atomically, the front end's before any estimator runs, so a failure
+later leaves what was already written valid. An estimator that fails is reported in its
+table row and the others still run.
+"""
+
+from __future__ import annotations
+
+import io
+import csv
+import sys
+import time
+from pathlib import Path
+from typing import Annotated, Optional
+
+import numpy as np
+import typer
+
+from datasets.errors import InputError
+from datasets.options import build_model, parse_assignments
+
+TABLE_COLUMNS = (
+    ("ate_rmse_m", "ATE RMSE [m]"),
+    ("rpe_trans_rmse_m", "RPE trans RMSE [m]"),
+    ("rpe_rot_rmse_deg", "RPE rot RMSE [deg]"),
+    ("nees_pose_mean", "NEES pose mean"),
+    ("time_per_step_ms_median", "step median [ms]"),
+    ("time_total_s", "total [s]"),
+)
+
+
+def _progress(disable: bool):
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(
+        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[rate]}"), TimeElapsedColumn(),
+        transient=True, disable=disable,
+    )
+
+
+def run_front_end(sequence, source, lidar_messages: int, disable_progress: bool) -> float:
+    """One pass over the sequence (fills the front-end cache); returns the wall time [s]."""
+    from datasets.measurements import PointCloud
+
+    started = time.perf_counter()
+    with _progress(disable_progress) as progress:
+        task = progress.add_task("front end (KISS-ICP + corners)", total=lidar_messages or None, rate="")
+        frames = 0
+        for measurement in sequence.measurements():
+            if isinstance(measurement, PointCloud):
+                frames += 1
+                elapsed = time.perf_counter() - started
+                progress.update(task, completed=frames, rate=f"{frames / max(elapsed, 1e-9):.1f} frames/s")
+    return time.perf_counter() - started
+
+
+def corners_csv(frames) -> str:
+    """One line per detection: frame time, index, position, covariance (upper triangle)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["t", "index", "x", "y", "z", "cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"])
+    for frame in frames:
+        if frame.corners is None:
+            continue
+        for index, (point, covariance) in enumerate(zip(frame.corners.points, frame.corners.covariances)):
+            padded = np.zeros(3)
+            padded[: len(point)] = point
+            full = np.zeros((3, 3))
+            full[: len(point), : len(point)] = covariance
+            writer.writerow([f"{frame.t:.9f}", index, *(f"{v:.6f}" for v in padded), *(f"{full[i, j]:.3e}" for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)))])
+    return buffer.getvalue()
+
+
+def front_end_metrics(sequence, source, seconds: float) -> dict:
+    """The front end's figures (see the module docstring)."""
+    from datasets.lidar.corner_truth import read_corner_truth, score_corners
+
+    front_end = source.front_end
+    frames = front_end.frames
+    metrics: dict = {
+        "frames": len(frames),
+        "points_per_frame_mean": float(np.mean([f.points for f in frames])) if frames else None,
+        "kiss_icp_ms_mean": 1000.0 * float(np.mean([f.icp_seconds for f in frames])) if frames else None,
+        "corner_ms_mean": 1000.0 * float(np.mean([f.corner_seconds for f in frames])) if frames else None,
+        "corners_per_frame_mean": float(np.mean([len(f.corners.points) for f in frames if f.corners is not None])) if frames and front_end.settings.corners else None,
+        "frames_per_s": len(frames) / seconds if seconds > 0 else None,
+        "kiss_icp_ate_rmse_m": None,
+        "corner_precision": None,
+        "corner_recall": None,
+        "skipped": source.report.lines(),
+        "nonfinite_points_dropped": int(source.report.nonfinite_points),
+        "topics": sequence.metadata.get("topics"),
+    }
+    truth = sequence.ground_truth.pose if sequence.ground_truth is not None else None
+    trajectory = front_end.trajectory()
+    if truth is not None and len(truth) >= 2 and trajectory is not None and len(trajectory) >= 3:
+        from workbench.metrics.ate import ate_report
+
+        try:
+            report = ate_report(truth, trajectory, align="se3", max_diff_s=0.05, allow_degenerate=True)
+            metrics["kiss_icp_ate_rmse_m"] = report["rmse_m"]
+            metrics["kiss_icp_ate"] = report
+        except InputError as error:
+            metrics["kiss_icp_ate_error"] = str(error)
+    sidecar = sequence.metadata.get("corner_sidecar")
+    if sidecar and truth is not None and front_end.settings.corners:
+        config = front_end.settings.corner
+        scores = score_corners([(f.t, f.corners.points) for f in frames], read_corner_truth(Path(sidecar)), truth, config.min_range_m, config.max_range_m, config.azimuth_resolution_deg)
+        metrics.update(scores)
+    return metrics
+
+
+def _status(text: str, limit: int = 160) -> str:
+    """One table-safe line: no newlines or pipes, at most ``limit`` characters."""
+    flat = " ".join(text.split()).replace("|", "/")
+    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
+
+
+def _cell(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def write_tables(out: Path, rows: list[dict]) -> None:
+    """``table.md`` and ``table.csv``: estimator, status, then ``TABLE_COLUMNS``."""
+    from datasets.trajectory_io import write_atomic
+
+    headers = ["estimator", "status"] + [title for _, title in TABLE_COLUMNS]
+    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["estimator", "status"] + [key for key, _ in TABLE_COLUMNS])
+    for row in rows:
+        values = [row.get(key) for key, _ in TABLE_COLUMNS]
+        lines.append("| " + " | ".join([row["estimator"], row["status"]] + [_cell(v) for v in values]) + " |")
+        writer.writerow([row["estimator"], row["status"]] + ["" if v is None else v for v in values])
+    write_atomic(out / "table.md", "\n".join(lines) + "\n")
+    write_atomic(out / "table.csv", buffer.getvalue())
+
+
+def choose_estimators(requested: str | None, sequence) -> list[str]:
+    """The requested names (checked), or every registered estimator the sequence allows."""
+    from workbench.registry import ESTIMATORS, estimator_entry
+    from workbench.runner import is_compatible
+
+    if requested:
+        names = [name.strip() for name in requested.split(",") if name.strip()]
+        for name in names:
+            estimator_entry(name)  # InputError listing the known ones
+        return names
+    return [entry.name for entry in ESTIMATORS if is_compatible(entry.load(), sequence)]
+
+
+def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str | None, ground_truth_topic: str | None, estimators: str | None, data: list[str], plots: bool, quiet: bool = False) -> list[dict]:
+    """The whole command (module docstring); returns the table rows."""
+    from datasets.bags.reader import open_bag
+    from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
+    from datasets.trajectory_io import write_atomic, write_tum
+    from workbench.run_folder import dump_json, write_run_folder
+    from workbench.runner import RunRequest, execute
+
+    options = parse_assignments(data, "--data")
+    for key, value in (("lidar_topic", lidar_topic), ("imu_topic", imu_topic), ("ground_truth_topic", ground_truth_topic)):
+        if value:
+            options[key] = value
+    settings = build_model(BagOptions, nest_dotted(options), f"bag:{path}")
+    sequence, source = bag_sequence(str(path), settings)
+    with open_bag(path) as reader:
+        lidar_messages = int(reader.topics[sequence.metadata["topics"]["lidar"]].msgcount)
+    if settings.max_frames:
+        lidar_messages = min(lidar_messages, settings.max_frames)
+    names = choose_estimators(estimators, sequence)
+    disable = quiet or not sys.stderr.isatty()
+
+    seconds = run_front_end(sequence, source, lidar_messages, disable)
+    if not source.front_end.frames:
+        raise InputError(f"{path}: no usable point clouds on {sequence.metadata['topics']['lidar']}" + (f" ({'; '.join(source.report.lines())})" if source.report.skipped else ""))
+    front_dir = out / "frontend"
+    front_dir.mkdir(parents=True, exist_ok=True)
+    trajectory = source.front_end.trajectory()
+    if trajectory is not None and len(trajectory):
+        write_tum(front_dir / "kiss_icp.tum", trajectory)
+    write_atomic(front_dir / "corners.csv", corners_csv(source.front_end.frames))
+    front = front_end_metrics(sequence, source, seconds)
+    write_atomic(front_dir / "metrics.json", dump_json(front))
+    for line in source.report.lines():
+        typer.echo(f"warning: {path}: {line}", err=True)
+
+    rows = [{"estimator": "kiss-icp (front end)", "status": "ok", "ate_rmse_m": front["kiss_icp_ate_rmse_m"], "time_per_step_ms_median": front["kiss_icp_ms_mean"]}]
+    data_options = tuple(options.items())
+    for name in names:
+        row = {"estimator": name, "status": "ok"}
+        try:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("t={task.completed:.1f} s"), TimeElapsedColumn(), transient=True, disable=disable) as progress:
+                start = sequence.initial_state.t if sequence.initial_state else 0.0
+                task = progress.add_task(name, total=None)
+                result = execute(RunRequest(estimator=name, dataset=sequence.name, data_options=data_options), sequence=sequence, on_step=lambda t: progress.update(task, completed=t - start))
+            metrics = write_run_folder(result, out / name, plots=plots)
+            row.update({key: metrics.get(key) for key, _ in TABLE_COLUMNS})
+        except InputError as error:
+            row["status"] = _status(f"not run: {error}")
+            typer.echo(f"warning: {name}: {error}", err=True)
+        except Exception as error:  # one estimator's failure must not lose the others' results
+            row["status"] = _status(f"failed: {type(error).__name__}: {error}")
+            typer.echo(f"warning: {name} failed: {row['status']}", err=True)
+        rows.append(row)
+        write_tables(out, rows)
+    write_tables(out, rows)
+    return rows
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("bag")
+    def bag(
+        path: Annotated[Path, typer.Argument(help="ROS 1 .bag file or ROS 2 bag folder (sqlite3 or mcap)")],
+        out: Annotated[Path, typer.Option("--out", help="output folder")],
+        lidar_topic: Annotated[Optional[str], typer.Option("--lidar-topic", help="PointCloud2 topic (default: found by type)")] = None,
+        imu_topic: Annotated[Optional[str], typer.Option("--imu-topic", help="Imu topic (default: found by type)")] = None,
+        gt_topic: Annotated[Optional[str], typer.Option("--gt-topic", help="Odometry/PoseStamped ground-truth topic")] = None,
+        estimators: Annotated[Optional[str], typer.Option("--estimators", help="comma-separated estimator names (default: all the bag allows)")] = None,
+        data: Annotated[Optional[list[str]], typer.Option("--data", help="bag option key=value, e.g. max_frames=50, kiss.voxel_size_m=0.5 (repeatable)")] = None,
+        plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write figures in run folders")] = True,
+    ) -> None:
+        """Lidar bag end to end: KISS-ICP + corners, every estimator, a comparison table."""
+        rows = bag_command(path, out, lidar_topic, imu_topic, gt_topic, estimators, data or [], plots)
+        typer.echo((out / "table.md").read_text(), nl=False)
+        typer.echo(f"frontend: {out / 'frontend'}; {len(rows) - 1} estimator run(s) in {out}")
