@@ -35,7 +35,8 @@ def measurement_arrays(measurement) -> list[np.ndarray]:
         return [measurement.gyro, measurement.accel]
     if isinstance(measurement, GyroSample):
         return [measurement.rate]
-    return [measurement.points, measurement.covariances] + ([] if measurement.ids is None else [measurement.ids])
+    optional = [array for array in (measurement.ids, measurement.directions) if array is not None]
+    return [measurement.points, measurement.covariances] + optional
 
 
 def folder_digest(folder: Path) -> dict[str, str]:
@@ -367,9 +368,34 @@ def test_describe_lists_every_scenario_and_its_options():
     assert any("duration_s" in line for line in lines) and any("landmark_rate_hz" in line for line in lines)
 
 
-@pytest.mark.parametrize("scenario", ["aghili-rover", "guerreiro-loop"])
-def test_folder_is_byte_identical_per_seed_and_round_trips(scenario, tmp_path):
-    options = {"duration_s": "15", "ids": "false"}
+def test_corner_wall_directions_are_body_frame_unit_vectors():
+    plan = ring_corridor_building()
+    sequence = load_scenario("guerreiro-loop", 0, {"directions": "true", "noise_scale": "0", "duration_s": "20"})
+    truth = sequence.ground_truth
+    for scan in scans_of(sequence)[::10]:
+        index = int(np.argmin(np.abs(truth.pose.t - scan.t)))
+        rotation = truth.pose.rotation_matrices()[index]
+        assert scan.directions.shape == (scan.count, 2, 2)
+        expected = np.einsum("ji,kmj->kmi", rotation, plan.corner_directions[scan.ids])
+        np.testing.assert_allclose(scan.directions, expected, atol=1e-12)
+        # Each direction runs along a wall from the corner (to the adjacent corner).
+        world = np.einsum("ij,kmj->kmi", rotation, scan.directions)
+        assert np.all(np.abs(np.abs(world).max(axis=2) - 1.0) < 1e-9)
+    noisy = load_scenario("guerreiro-loop", 0, {"directions": "true", "duration_s": "20"})
+    angles = []
+    for clean, dirty in zip(scans_of(sequence), scans_of(noisy)):
+        cross = clean.directions[..., 0] * dirty.directions[..., 1] - clean.directions[..., 1] * dirty.directions[..., 0]
+        dot = np.sum(clean.directions * dirty.directions, axis=2)
+        angles.append(np.arctan2(cross, dot).ravel())
+    assert np.degrees(np.std(np.concatenate(angles))) == pytest.approx(2.0, rel=0.05)
+    assert all(scan.directions is None for scan in scans_of(load_scenario("guerreiro-loop", 0, {"duration_s": "2"})))
+
+
+@pytest.mark.parametrize(
+    ("scenario", "extra"), [("aghili-rover", {}), ("guerreiro-loop", {}), ("guerreiro-loop", {"directions": "true"})]
+)
+def test_folder_is_byte_identical_per_seed_and_round_trips(scenario, extra, tmp_path):
+    options = {"duration_s": "15", "ids": "false", **extra}
     first = write_sequence_folder(load_scenario(scenario, 1, options), tmp_path / "a")
     second = write_sequence_folder(load_scenario(scenario, 1, options), tmp_path / "b")
     other = write_sequence_folder(load_scenario(scenario, 2, options), tmp_path / "c")

@@ -71,6 +71,7 @@ def _scan_measurements(scans: ScanSeries, with_ids: bool) -> list[Measurement]:
             points=scans.points[i].copy(),
             covariances=scans.covariances[i].copy(),
             ids=scans.ids[i].copy() if with_ids else None,
+            directions=None if scans.directions is None else scans.directions[i].copy(),
         )
         for i, t in enumerate(scans.t)
     ]

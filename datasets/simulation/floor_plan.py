@@ -57,6 +57,15 @@ def polygon_walls(vertices: np.ndarray) -> np.ndarray:
     return np.stack([vertices, np.roll(vertices, -1, axis=0)], axis=1)
 
 
+def polygon_corner_directions(vertices: np.ndarray) -> np.ndarray:
+    """Unit directions from each vertex of a closed polygon (V, 2) towards its previous and
+    next vertex, shape (V, 2, 2)."""
+    to_previous = np.roll(vertices, 1, axis=0) - vertices
+    to_next = np.roll(vertices, -1, axis=0) - vertices
+    directions = np.stack([to_previous, to_next], axis=1)
+    return directions / np.linalg.norm(directions, axis=2, keepdims=True)
+
+
 @dataclass(frozen=True)
 class FloorPlan:
     """Walls and corner landmarks of a building.
@@ -64,11 +73,15 @@ class FloorPlan:
     Attributes:
         walls: wall segments [m], shape (M, 2, 2).
         corners: corner positions [m], shape (K, 2); landmark id = row index.
+        corner_directions: unit directions (world frame) along the two walls that meet at
+            each corner, pointing away from it, shape (K, 2, 2): [previous wall, next wall]
+            of the polygon.
         corridor_centerline: the counterclockwise rectangle (4, 2) at corridor mid-width.
     """
 
     walls: np.ndarray
     corners: np.ndarray
+    corner_directions: np.ndarray
     corridor_centerline: np.ndarray
 
 
@@ -99,5 +112,6 @@ def ring_corridor_building(
     return FloorPlan(
         walls=np.concatenate([polygon_walls(outer), polygon_walls(inner)]),
         corners=np.concatenate([outer, inner]),
+        corner_directions=np.concatenate([polygon_corner_directions(outer), polygon_corner_directions(inner)]),
         corridor_centerline=centerline,
     )

@@ -43,7 +43,7 @@ header line, comma-separated; times printed `%.9f`, values `%.17g` (exact round 
 | `imu.csv` | 3-D IMU: `t, gyro_x, gyro_y, gyro_z` [rad/s], `accel_x, accel_y, accel_z` [m/s^2, specific force] |
 | `gyro.csv` | planar rate gyro: `t, rate_z` [rad/s] |
 | `scans.csv` | every landmark scan, also empty ones: `scan, t, count` |
-| `landmarks.csv` | one row per observed landmark: `scan, t, id` (-1 when ids are withheld), body-frame position `x, y[, z]` [m], covariance upper triangle row by row `c_xx, c_xy[, c_xz], c_yy[, c_yz][, c_zz]` [m^2] |
+| `landmarks.csv` | one row per observed landmark: `scan, t, id` (-1 when ids are withheld), body-frame position `x, y[, z]` [m], covariance upper triangle row by row `c_xx, c_xy[, c_xz], c_yy[, c_yz][, c_zz]` [m^2], and when `direction_count` j > 0 in `sequence.json`, j unit line directions `u1_x, u1_y[, u1_z], ...` (body frame) |
 | `known_landmarks.csv` | surveyed landmarks in anchor preference order: `rank, id, x, y[, z]` (world) |
 | `ground_truth/pose.tum` | true pose at the inertial rate, TUM `t x y z qx qy qz qw` (planar: z = 0, yaw) |
 | `ground_truth/states.csv` | `t`, world velocity `vw_*`, body velocity `vb_*`, gyro bias `bg_*`, accelerometer bias `ba_*` (3-D only) |
@@ -131,10 +131,15 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
         [np.arange(len(scans)), np.array([scan.t for scan in scans]), np.array([scan.count for scan in scans])],
         ["%d", TIME_FORMAT, "%d"],
     )
+    direction_count = _direction_count(scans, folder)
+    direction_names = [f"u{m + 1}_{axis}" for m in range(direction_count) for axis in axes]
+    directions = np.zeros((len(points), 0))
+    if direction_count:
+        directions = np.concatenate([scan.directions.reshape(scan.count, direction_count * d) for scan in scans])
     files["landmarks.csv"] = _table(
-        ["scan", "t", "id", *axes, *cov_names],
-        [scan_index, scan_t, ids, *points.T, *covariances[:, rows, cols].T],
-        ["%d", TIME_FORMAT, "%d"] + [VALUE_FORMAT] * (d + len(cov_names)),
+        ["scan", "t", "id", *axes, *cov_names, *direction_names],
+        [scan_index, scan_t, ids, *points.T, *covariances[:, rows, cols].T, *directions.T],
+        ["%d", TIME_FORMAT, "%d"] + [VALUE_FORMAT] * (d + len(cov_names) + len(direction_names)),
     )
     if sequence.known_landmarks is not None:
         known = sequence.known_landmarks
@@ -154,6 +159,7 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
         "dimension": d,
         "sensors": sorted(str(sensor) for sensor in sequence.sensors),
         "ids_withheld": ids_withheld,
+        "direction_count": direction_count,
         "noise": _json_ready(dataclasses.asdict(sequence.noise)),
         "initial_state": None if initial is None else _json_ready(dataclasses.asdict(initial)),
         "metadata": _json_ready(sequence.metadata),
@@ -164,6 +170,16 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
     for name, text in files.items():
         write_atomic(folder / name, text)
     return folder
+
+
+def _direction_count(scans: list[LandmarkScan], folder: Path) -> int:
+    """Line directions per landmark (j), the same for every scan, or 0 when none has them."""
+    counts = {0 if scan.directions is None else int(scan.directions.shape[1]) for scan in scans if scan.count}
+    if any(scan.directions is not None for scan in scans) and any(scan.directions is None for scan in scans):
+        raise InputError(f"{folder}: some scans carry line directions and others not")
+    if len(counts) > 1:
+        raise InputError(f"{folder}: scans carry different numbers of line directions {sorted(counts)}")
+    return counts.pop() if counts else 0
 
 
 def _ground_truth_files(truth: GroundTruth, d: int, scans: list[LandmarkScan]) -> dict[str, str]:
@@ -236,6 +252,7 @@ def read_sequence_folder(path: str | Path) -> Sequence:
         name = description["name"]
         sensors = frozenset(Sensor(value) for value in description["sensors"])
         ids_withheld = bool(description["ids_withheld"])
+        direction_count = int(description.get("direction_count", 0))
         files = set(description["files"])
     except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
         raise InputError(f"{description_path}: malformed description ({error})") from None
@@ -253,7 +270,10 @@ def read_sequence_folder(path: str | Path) -> Sequence:
         _, table = _read_table(folder / "gyro.csv", ["t", "rate_z"])
         inertial = [GyroSample(t=float(row[0]), rate=row[1:2].copy()) for row in table]
     _, scan_table = _read_table(folder / "scans.csv", ["scan", "t", "count"])
-    _, observations = _read_table(folder / "landmarks.csv", ["scan", "t", "id", *axes, *cov_names])
+    direction_names = [f"u{m + 1}_{axis}" for m in range(direction_count) for axis in axes]
+    _, observations = _read_table(folder / "landmarks.csv", ["scan", "t", "id", *axes, *cov_names, *direction_names])
+    covariance_columns = slice(3 + d, 3 + d + len(cov_names))
+    direction_columns = slice(3 + d + len(cov_names), None)
     counts = scan_table[:, 2].astype(int)
     if counts.sum() != len(observations):
         raise InputError(f"{folder / 'landmarks.csv'}: {len(observations)} rows, scans.csv counts {counts.sum()}")
@@ -264,12 +284,13 @@ def read_sequence_folder(path: str | Path) -> Sequence:
         if np.any(block[:, 0] != index):
             raise InputError(f"{folder / 'landmarks.csv'}: rows of scan {index} out of order")
         covariances = np.zeros((len(block), d, d))
-        covariances[:, rows, cols] = block[:, 3 + d:]
-        covariances[:, cols, rows] = block[:, 3 + d:]
+        covariances[:, rows, cols] = block[:, covariance_columns]
+        covariances[:, cols, rows] = block[:, covariance_columns]
         scans.append(
             LandmarkScan(
                 t=float(t), points=block[:, 3:3 + d].copy(), covariances=covariances,
                 ids=None if ids_withheld else block[:, 2].astype(int),
+                directions=block[:, direction_columns].reshape(-1, direction_count, d).copy() if direction_count else None,
             )
         )
 

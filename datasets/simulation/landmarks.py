@@ -29,12 +29,15 @@ class ScanSeries:
         points: per scan, measured body-frame positions [m], shape (k, d).
         covariances: per scan, stated covariances [m^2], shape (k, d, d).
         ids: per scan, true landmark ids, shape (k,) int.
+        directions: per scan, measured unit line directions in the body frame, shape
+            (k, j, d), or None when the sensor reports none.
     """
 
     t: np.ndarray
     points: tuple[np.ndarray, ...]
     covariances: tuple[np.ndarray, ...]
     ids: tuple[np.ndarray, ...]
+    directions: tuple[np.ndarray, ...] | None = None
 
     def visible_counts(self) -> np.ndarray:
         """Landmarks per scan, shape (S,)."""
@@ -166,6 +169,17 @@ def range_bearing_observations(
         stated_scale * noise.bearing_sigma_rad,
     )
     return points, covariances
+
+
+def planar_direction_observations(
+    body_directions: np.ndarray, sigma_rad: float, noise_scale: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Unit planar directions (k, j, 2) each rotated by an independent N(0, (noise_scale
+    sigma)^2) angle (a line fit's orientation error)."""
+    angles = noise_scale * sigma_rad * rng.standard_normal(body_directions.shape[:2])
+    cos, sin = np.cos(angles), np.sin(angles)
+    x, y = body_directions[..., 0], body_directions[..., 1]
+    return np.stack([cos * x - sin * y, sin * x + cos * y], axis=-1)
 
 
 def anchor_order(positions: np.ndarray, visible_first: np.ndarray, origin: np.ndarray) -> np.ndarray:

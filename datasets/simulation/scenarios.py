@@ -32,7 +32,7 @@ from datasets.simulation.imu import (
 )
 from datasets.simulation.landmarks import (
     RangeBearingNoise, ScanSeries, anchor_order, field_of_view_mask, isotropic_observations, line_of_sight_mask,
-    range_bearing_observations, to_body_frame,
+    planar_direction_observations, range_bearing_observations, to_body_frame,
 )
 from datasets.simulation.trajectories import (
     CircleMotion, PlanarPathMotion, RoundedPolylinePath, SinusoidalSpeed, StaticMotion, Terrain, TerrainViaPointLoop,
@@ -104,6 +104,10 @@ class GuerreiroLoopOptions(_CommonOptions):
         float(np.deg2rad(5.7e-5)), ge=0, description="gyro bias random walk [rad/s^2/sqrt(Hz)] (paper: 5.7e-5 deg/s)"
     )
     gyro_bias_sigma_rad_s: float = Field(5e-3, ge=0, description="std of the initial gyro bias [rad/s]")
+    directions: bool = Field(False, description="scans carry each corner's two wall directions (body frame)")
+    direction_sigma_deg: float = Field(
+        2.0, ge=0, description="std of the wall direction angle noise [deg] (the paper states none)"
+    )
 
 
 def _noise_factors(noise_scale: float) -> tuple[float, float]:
@@ -286,7 +290,9 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     occlude). Noise as the paper: sigma_alpha = 3.75 deg, sigma_rho = 0.15 m up to 10 m,
     0.25 m beyond, drawn in range/bearing; covariance first-order J diag J^T. A rate gyro at
     the laser rate with bias (walk 5.7e-5 deg/s/sqrt(s) as the paper's sigma_br) and MEMS
-    white noise. No odometry.
+    white noise. No odometry. With ``directions=true`` each observed corner also carries the
+    body-frame unit directions of its two walls (the paper's direction landmarks), each
+    rotated by N(0, direction_sigma_deg^2) noise.
     """
     motion = guerreiro_loop_motion(options.mean_speed_m_s)
     full = motion.duration_s
@@ -309,7 +315,8 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     scan_times = sample_times(duration, options.landmark_rate_hz)
     scan_kinematics = motion.kinematics(scan_times)
     rng = generators["landmarks"]
-    points, covariances, ids = [], [], []
+    direction_rng = generators["spare"]
+    points, covariances, ids, directions = [], [], [], []
     visible_at_start = None
     for index in range(len(scan_times)):
         position, rotation = scan_kinematics.position[index], scan_kinematics.rotation[index]
@@ -323,7 +330,15 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
         points.append(measured)
         covariances.append(covariance)
         ids.append(visible.astype(int))
-    scans = ScanSeries(t=scan_times, points=tuple(points), covariances=tuple(covariances), ids=tuple(ids))
+        if options.directions:
+            body_directions = plan.corner_directions[visible] @ rotation  # R^T u for each direction
+            directions.append(
+                planar_direction_observations(body_directions, np.deg2rad(options.direction_sigma_deg), drawn, direction_rng)
+            )
+    scans = ScanSeries(
+        t=scan_times, points=tuple(points), covariances=tuple(covariances), ids=tuple(ids),
+        directions=tuple(directions) if options.directions else None,
+    )
     data = SimulatedData(
         kinematics=kinematics,
         inertial=inertial,
