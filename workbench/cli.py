@@ -118,9 +118,14 @@ def run_command(
     typer.echo(f"run folder: {out}")
 
 
+_registered: set[str] = set()
+
+
 def _register_command_modules() -> None:
     for module_name in COMMAND_MODULES:
-        importlib.import_module(module_name).register(app)
+        if module_name not in _registered:  # main() may be called more than once in-process
+            importlib.import_module(module_name).register(app)
+            _registered.add(module_name)
 
 
 def main(argv: list[str] | None = None) -> int:
