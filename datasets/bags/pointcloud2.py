@@ -11,8 +11,8 @@ Per-point time fields, first found of ``time``, ``t``, ``timestamp``, ``offset_t
   are seconds (Velodyne ``time``), unless their spread within one cloud exceeds
   ``NANOSECOND_SPREAD_S`` (a sweep lasts well under a second), in which case they are
   nanoseconds. ``time_unit`` overrides the guess.
-- origin: times that look absolute (above ``ABSOLUTE_TIME_S``, e.g. Hesai ``timestamp``)
-  are made relative to the header stamp. The result is always seconds relative to the
+- origin: times whose median exceeds ``ABSOLUTE_TIME_S`` (longer than any sweep lasts) are
+  absolute (e.g. Hesai ``timestamp``) and are made relative to the header stamp. The result is always seconds relative to the
   cloud's stamp, i.e. ``PointCloud.point_times``.
 """
 
@@ -26,7 +26,7 @@ from datasets.errors import InputError
 
 TIME_FIELDS = ("time", "t", "timestamp", "offset_time")
 NANOSECOND_SPREAD_S = 10.0
-ABSOLUTE_TIME_S = 1e6
+ABSOLUTE_TIME_S = 1.0
 _NUMPY_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 _UNIT_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
