@@ -18,8 +18,6 @@ Choices the paper leaves open (documented here):
 
 from __future__ import annotations
 
-from collections import deque
-
 import numpy as np
 
 
@@ -38,41 +36,59 @@ class SlidingWindowNoise:
         self.window = int(window)
         self.min_variance = float(min_sigma_m) ** 2
         self.min_samples = self.window if min_samples is None else int(min_samples)
-        self._outer: deque[np.ndarray] = deque()
-        self._predicted: deque[np.ndarray] = deque()
+        # ring buffers of the last w outer products and H P^- H^T blocks
+        self._outer = np.zeros((self.window, 3, 3))
+        self._predicted = np.zeros((self.window, 3, 3))
+        self._head = 0
+        self._count = 0
         self._sum_outer = np.zeros((3, 3))
         self._sum_predicted = np.zeros((3, 3))
         self._pushes = 0
+        self._cached: np.ndarray | None = None
 
     def __len__(self) -> int:
-        return len(self._outer)
+        return self._count
 
     def add(self, residuals: np.ndarray, predicted_covariances: np.ndarray) -> None:
-        """Eq. (42b): push residuals (k, 3) [m] and their ``H P^- H^T`` blocks (k, 3, 3)."""
-        for residual, predicted in zip(np.asarray(residuals, float), np.asarray(predicted_covariances, float)):
-            outer = np.outer(residual, residual)
-            self._outer.append(outer)
-            self._predicted.append(predicted)
-            self._sum_outer += outer
-            self._sum_predicted += predicted
-            if len(self._outer) > self.window:
-                self._sum_outer -= self._outer.popleft()
-                self._sum_predicted -= self._predicted.popleft()
-            self._pushes += 1
-            if self._pushes % (16 * self.window) == 0:
-                # recompute the running sums now and then: no drift from round-off
-                self._sum_outer = np.sum(self._outer, axis=0)
-                self._sum_predicted = np.sum(self._predicted, axis=0)
+        """Eq. (42b): push residuals (k, 3) [m] and their ``H P^- H^T`` blocks (k, 3, 3).
+
+        ``W_k = W_(k-1) + (rho_k rho_k^T - rho_(k-w) rho_(k-w)^T) / w`` kept as running sums.
+        """
+        residuals = np.asarray(residuals, dtype=float).reshape(-1, 3)[-self.window :]
+        predicted = np.asarray(predicted_covariances, dtype=float).reshape(-1, 3, 3)[-self.window :]
+        count = len(residuals)
+        if count == 0:
+            return
+        slots = (self._head + np.arange(count)) % self.window
+        occupied = slots[slots < self._count] if self._count < self.window else slots
+        self._sum_outer -= self._outer[occupied].sum(axis=0)
+        self._sum_predicted -= self._predicted[occupied].sum(axis=0)
+        outer = np.einsum("ki,kj->kij", residuals, residuals)
+        self._outer[slots] = outer
+        self._predicted[slots] = predicted
+        self._sum_outer += outer.sum(axis=0)
+        self._sum_predicted += predicted.sum(axis=0)
+        self._head = int((self._head + count) % self.window)
+        self._count = min(self._count + count, self.window)
+        self._pushes += count
+        if self._pushes >= 16 * self.window:
+            # recompute the running sums now and then: no drift from round-off
+            self._pushes = 0
+            self._sum_outer = self._outer[: self._count].sum(axis=0)
+            self._sum_predicted = self._predicted[: self._count].sum(axis=0)
+        self._cached = None
 
     @property
     def ready(self) -> bool:
-        return len(self._outer) >= self.min_samples
+        return self._count >= self.min_samples
 
     def estimate(self) -> np.ndarray:
         """Eq. (42): ``R = W - mean(H P^- H^T)`` (3, 3), symmetric with eigenvalues >= floor."""
-        count = max(len(self._outer), 1)
-        r = (self._sum_outer - self._sum_predicted) / count
-        r = 0.5 * (r + r.T)
-        values, vectors = np.linalg.eigh(r)
-        values = np.maximum(values, self.min_variance)
-        return (vectors * values) @ vectors.T
+        if self._cached is None:
+            count = max(self._count, 1)
+            r = (self._sum_outer - self._sum_predicted) / count
+            r = 0.5 * (r + r.T)
+            values, vectors = np.linalg.eigh(r)
+            values = np.maximum(values, self.min_variance)
+            self._cached = (vectors * values) @ vectors.T
+        return self._cached.copy()

@@ -59,7 +59,7 @@ from filters.aghili.transition import (
     VEHICLE_DIM,
     VELOCITY,
     error_dynamics,
-    lambda_matrix,
+    lambda_matrices,
     vehicle_transition,
 )
 
@@ -222,18 +222,18 @@ class AghiliFilter:
         a_bar = accel + self.b_a  # eq. (34b)
         attitude = quat.rotation_matrix(self.q)
         # eq. (15) integrated exactly for constant omega_bar, a_bar: A(s) = Abar exp([omega x] s)
-        gamma_1 = lambda_matrix(2, -omega_bar, dt)  # int_0^dt exp(W s) ds
-        gamma_2 = lambda_matrix(3, -omega_bar, dt)
+        _, gamma_1, gamma_2 = lambda_matrices(-omega_bar, dt, 3)  # int exp(W s) ds, and twice
         gravity = np.array([0.0, 0.0, GRAVITY_M_S2])
         self.r = self.r + self.v * dt + attitude @ gamma_2 @ a_bar - 0.5 * gravity * dt**2
         self.v = self.v + attitude @ gamma_1 @ a_bar - gravity * dt
         self.q = quat.propagate(self.q, omega_bar, dt)  # eq. (39), exact exponential
-        phi = vehicle_transition(omega_bar, a_bar, attitude, dt)
+        lambdas = lambda_matrices(omega_bar, dt, 5)
+        phi = vehicle_transition(omega_bar, a_bar, attitude, dt, lambdas)
         if self.config.process_noise == "van-loan":
             F, G = error_dynamics(omega_bar, a_bar, attitude)
             q_vehicle = process_noise_van_loan(F, G, self.sigma, dt)
         else:
-            q_vehicle = vehicle_process_noise(omega_bar, a_bar, attitude, dt, *self.densities)
+            q_vehicle = vehicle_process_noise(omega_bar, a_bar, attitude, dt, *self.densities, lambdas=lambdas)
         # eq. (41b): the landmark-landmark block is untouched: O(n) per step
         v = VEHICLE_DIM
         P = self.P

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from datasets.rotations import skew
-from filters.aghili.transition import ACCEL_BIAS, ATTITUDE, GYRO_BIAS, POSITION, VEHICLE_DIM, VELOCITY, lambda_matrix
+from filters.aghili.transition import ACCEL_BIAS, ATTITUDE, GYRO_BIAS, POSITION, VEHICLE_DIM, VELOCITY, lambda_matrices
 
 _TERMS = 24
 _CLOSED_FORM_LIMIT = 3.0
@@ -90,18 +90,32 @@ def _series_by_order(i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
     return real, imag
 
 
+@lru_cache(maxsize=None)
+def _pair_tables(pairs: tuple[tuple[int, int], ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Stacked ``_series_by_order`` tables (P, 2T), tau exponent offsets (P,), parallel factors (P,)."""
+    real = np.array([_series_by_order(i, j)[0] for i, j in pairs])
+    imag = np.array([_series_by_order(i, j)[1] for i, j in pairs])
+    offsets = np.array([i + j - 1 for i, j in pairs], dtype=float)
+    parallel = np.array([1.0 / ((i + j - 1) * factorial(i - 1) * factorial(j - 1)) for i, j in pairs])
+    return real, imag, offsets, parallel
+
+
+_ORDERS = np.arange(2 * _TERMS)
+_EVEN_MASK = (_ORDERS % 2 == 0) & (_ORDERS >= 2)
+_ODD_MASK = _ORDERS % 2 == 1
+
+
 def _product_coefficients(pairs: tuple[tuple[int, int], ...], rate: float, tau: float) -> np.ndarray:
     """``(parallel, beta, gamma)`` of ``J_ij = parallel 1 + beta W + gamma W^2`` per pair, (P, 3)."""
-    n = np.arange(2 * _TERMS)
-    rate_even = np.where((n % 2 == 0) & (n >= 2), rate ** np.maximum(n - 2, 0), 0.0)
-    rate_odd = np.where(n % 2 == 1, rate ** np.maximum(n - 1, 0), 0.0)
+    real, imag, offsets, parallel = _pair_tables(pairs)
+    n = _ORDERS
+    rate_even = np.where(_EVEN_MASK, rate ** np.maximum(n - 2, 0), 0.0)
+    rate_odd = np.where(_ODD_MASK, rate ** np.maximum(n - 1, 0), 0.0)
+    tau_powers = tau ** (n[None, :] + offsets[:, None])
     out = np.empty((len(pairs), 3))
-    for row, (i, j) in enumerate(pairs):
-        real, imag = _series_by_order(i, j)
-        tau_powers = tau ** (n + i + j - 1)
-        out[row, 0] = tau ** (i + j - 1) / ((i + j - 1) * factorial(i - 1) * factorial(j - 1))
-        out[row, 1] = imag @ (tau_powers * rate_odd)
-        out[row, 2] = -(real @ (tau_powers * rate_even))
+    out[:, 0] = parallel * tau**offsets
+    out[:, 1] = np.sum(imag * tau_powers * rate_odd, axis=1)
+    out[:, 2] = -np.sum(real * tau_powers * rate_even, axis=1)
     return out
 
 
@@ -129,19 +143,23 @@ def vehicle_process_noise(
     gyro_bias_walk: float,
     accel_density: float,
     accel_bias_walk: float,
+    lambdas: list[np.ndarray] | None = None,
 ) -> np.ndarray:
     """Aghili eq. (36) in closed form: ``Q'`` (15, 15) for the vehicle error state.
 
     Same arguments as ``transition.vehicle_transition`` plus the continuous densities of
     ``noise_covariance``. Derived block by block from the columns of the corrected Phi'
     (``transition`` module) times G (21b, corrected); ``M = Abar [abar x]``. Falls back to
-    Van Loan when ``|omega_bar| tau`` exceeds the series' comfortable range.
+    Van Loan when ``|omega_bar| tau`` exceeds the series' comfortable range. ``lambdas``:
+    ``lambda_matrices(omega_bar, tau, >= 5)`` if already computed.
     """
     if float(np.linalg.norm(omega_bar)) * tau > _CLOSED_FORM_LIMIT:
         from filters.aghili.transition import error_dynamics
 
         F, G = error_dynamics(omega_bar, a_bar, attitude)
         return process_noise_van_loan(F, G, noise_covariance(gyro_density, gyro_bias_walk, accel_density, accel_bias_walk), tau)
+    if lambdas is None:
+        lambdas = lambda_matrices(omega_bar, tau, 5)
     sg2, sbg2, sa2, sba2 = gyro_density**2, gyro_bias_walk**2, accel_density**2, accel_bias_walk**2
     m = attitude @ skew(a_bar)
     w = skew(omega_bar)
@@ -159,24 +177,20 @@ def vehicle_process_noise(
     q[ATTITUDE, ATTITUDE] = sg2 / 4.0 * j(1, 1) + sbg2 / 4.0 * j(2, 2)
     q[ATTITUDE, POSITION] = -sg2 / 2.0 * j(1, 3) @ m.T - sbg2 / 2.0 * j(2, 4) @ m.T
     q[ATTITUDE, VELOCITY] = -sg2 / 2.0 * j(1, 2) @ m.T - sbg2 / 2.0 * j(2, 3) @ m.T
-    q[ATTITUDE, GYRO_BIAS] = sbg2 / 2.0 * lambda_matrix(3, omega_bar, tau)
+    q[ATTITUDE, GYRO_BIAS] = sbg2 / 2.0 * lambdas[2]
     q[POSITION, POSITION] = (
         sg2 * m @ j(3, 3) @ m.T + sbg2 * m @ j(4, 4) @ m.T + (sa2 * tau**3 / 3.0 + sba2 * tau**5 / 20.0) * eye
     )
     q[POSITION, VELOCITY] = sg2 * m @ j(3, 2) @ m.T + sbg2 * m @ j(4, 3) @ m.T + (sa2 * tau**2 / 2.0 + sba2 * tau**4 / 8.0) * eye
-    q[POSITION, GYRO_BIAS] = -sbg2 * m @ lambda_matrix(5, omega_bar, tau)
+    q[POSITION, GYRO_BIAS] = -sbg2 * m @ lambdas[4]
     q[POSITION, ACCEL_BIAS] = sba2 * tau**3 / 6.0 * attitude
     q[VELOCITY, VELOCITY] = sg2 * m @ j(2, 2) @ m.T + sbg2 * m @ j(3, 3) @ m.T + (sa2 * tau + sba2 * tau**3 / 3.0) * eye
-    q[VELOCITY, GYRO_BIAS] = -sbg2 * m @ lambda_matrix(4, omega_bar, tau)
+    q[VELOCITY, GYRO_BIAS] = -sbg2 * m @ lambdas[3]
     q[VELOCITY, ACCEL_BIAS] = sba2 * tau**2 / 2.0 * attitude
     q[GYRO_BIAS, GYRO_BIAS] = sbg2 * tau * eye
     q[ACCEL_BIAS, ACCEL_BIAS] = sba2 * tau * eye
-    upper = np.triu(np.ones((5, 5), dtype=bool), 1)
-    for row in range(5):
-        for col in range(5):
-            if upper[row, col]:
-                q[3 * col : 3 * col + 3, 3 * row : 3 * row + 3] = q[3 * row : 3 * row + 3, 3 * col : 3 * col + 3].T
-    return q
+    # only blocks on or above the block diagonal were filled: mirror the strict upper triangle
+    return np.triu(q) + np.triu(q, 1).T
 
 
 def paper_printed_blocks(omega_bar: np.ndarray, tau: float, gyro_density: float, gyro_bias_walk: float, accel_density: float) -> dict[str, np.ndarray]:

@@ -84,6 +84,31 @@ def series_coefficient(order: int, x: float) -> float:
     return float(value)
 
 
+def series_coefficients(x: float, count: int) -> np.ndarray:
+    """``[c_1(x), ..., c_count(x)]`` (count,) at once (see ``series_coefficient``)."""
+    if x < _SERIES_LIMIT:
+        return _coefficient_table(count) @ x**_EVEN_POWERS
+    return np.array([series_coefficient(order, x) for order in range(1, count + 1)])
+
+
+@lru_cache(maxsize=None)
+def _coefficient_table(count: int) -> np.ndarray:
+    return np.array([_inverse_factorials(order) for order in range(1, count + 1)])
+
+
+def lambda_matrices(omega: np.ndarray, tau: float, max_order: int) -> list[np.ndarray]:
+    """``[Lambda_1, ..., Lambda_max_order]`` (each (3, 3)) of eq. (35), sharing one series
+    evaluation; ``lambda_matrices(-omega, ...)`` gives the integrals of ``exp(+[omega x] s)``."""
+    w = skew(omega)
+    w2 = w @ w
+    c = series_coefficients(float(np.linalg.norm(omega)) * tau, max_order + 1)
+    eye = np.eye(3)
+    return [
+        tau ** (n - 1) / factorial(n - 1) * eye - tau**n * c[n - 1] * w + tau ** (n + 1) * c[n] * w2
+        for n in range(1, max_order + 1)
+    ]
+
+
 def lambda_matrix(order: int, omega: np.ndarray, tau: float) -> np.ndarray:
     """Aghili eq. (35): ``Lambda_n(tau)`` (3, 3), the n-1 fold integral of ``exp(-[omega x] s)``.
 
@@ -129,7 +154,9 @@ def error_dynamics(omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarra
     return F, G
 
 
-def vehicle_transition(omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarray, tau: float) -> np.ndarray:
+def vehicle_transition(
+    omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarray, tau: float, lambdas: list[np.ndarray] | None = None
+) -> np.ndarray:
     """Aghili eq. (35), corrected: ``Phi'(tau) = expm(F' tau)`` (15, 15) in closed form.
 
     Args:
@@ -137,8 +164,11 @@ def vehicle_transition(omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.nd
         a_bar: bias-corrected specific force [m/s^2] (3,).
         attitude: ``Abar`` (3, 3), held constant over the step (as in the paper).
         tau: step [s].
+        lambdas: ``lambda_matrices(omega_bar, tau, >= 4)`` if already computed.
     """
-    lambdas = {n: lambda_matrix(n, omega_bar, tau) for n in (1, 2, 3, 4)}
+    if lambdas is None:
+        lambdas = lambda_matrices(omega_bar, tau, 4)
+    lambdas = {n: lambdas[n - 1] for n in (1, 2, 3, 4)}
     coupling = attitude @ skew(a_bar)  # M = Abar [abar x]
     phi = np.eye(VEHICLE_DIM)
     phi[ATTITUDE, ATTITUDE] = lambdas[1]
