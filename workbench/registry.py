@@ -67,6 +67,11 @@ ESTIMATORS: tuple[EstimatorEntry, ...] = (
         "strap-down IMU / odometry / gyro integration without corrections (the lower bound)",
     ),
     EstimatorEntry(
+        "aghili",
+        "filters.aghili.filter:AghiliFilter",
+        "Aghili adaptive error-state EKF SLAM: strap-down IMU + 3-D landmarks, r known anchors, IMU biases, adaptive R (eq. 42)",
+    ),
+    EstimatorEntry(
         "sensor-based",
         "filters.sensor_based.filter:SensorBasedSlam",
         "Guerreiro et al. 2013 GAS sensor-based (robocentric LTV Kalman) SLAM: gyro + body-frame landmarks, JCBB",
