@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
-from datasets.rotations import quat_wxyz_from_matrix, wrap_angle
+from datasets.rotations import quat_wxyz_from_matrix, rot2, so3_exp, wrap_angle
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.simulation.imu import ImuSeries
 from datasets.simulation.landmarks import ScanSeries
@@ -110,21 +110,71 @@ def ground_truth(data: SimulatedData) -> GroundTruth:
     )
 
 
+@dataclass(frozen=True)
+class InitialSigmas:
+    """Stated uncertainty of the simulated initial state (before noise scaling)."""
+
+    position_m: float = 0.01
+    rotation_rad: float = 0.005
+    velocity_m_s: float = 0.1
+
+
+def initial_state_draw(
+    pose: Trajectory, velocity: np.ndarray, rng: np.random.Generator, drawn: float, stated: float, sigmas: InitialSigmas
+) -> InitialState:
+    """The initial state as a draw from its stated distribution around the true start.
+
+    Errors follow the interface convention (right perturbation): ``R_true = R_0 Exp(dtheta)``
+    and ``p_true = p_0 + R_0 dp`` with ``dtheta ~ N(0, s_r^2 I)``, ``dp ~ N(0, s_p^2 I)``;
+    ``v_true = v_0 + dv``. Sigmas are floored at 1e-9 so a noise-free run keeps a valid prior.
+    """
+    dimension = pose.dimension
+    position_error = rng.normal(0.0, sigmas.position_m * drawn, dimension)
+    velocity_error = rng.normal(0.0, sigmas.velocity_m_s * drawn, dimension)
+    if dimension == 3:
+        rotation_error = rng.normal(0.0, sigmas.rotation_rad * drawn, 3)
+        true_rotation = pose.rotation_matrices()[0]
+        start_rotation = true_rotation @ so3_exp(-rotation_error)
+        rotation = quat_wxyz_from_matrix(start_rotation)
+    else:
+        heading_error = rng.normal(0.0, sigmas.rotation_rad * drawn)
+        start_heading = float(pose.rotations[0] - heading_error)
+        start_rotation = rot2(start_heading)
+        rotation = np.array(start_heading)
+    return InitialState(
+        t=float(pose.t[0]),
+        position=pose.positions[0] - start_rotation @ position_error,
+        rotation=rotation,
+        velocity=np.asarray(velocity, dtype=float) - velocity_error,
+        position_sigma_m=max(sigmas.position_m * stated, 1e-9),
+        rotation_sigma_rad=max(sigmas.rotation_rad * stated, 1e-9),
+        velocity_sigma_m_s=max(sigmas.velocity_m_s * stated, 1e-9),
+    )
+
+
 def build_sequence(
     name: str,
     data: SimulatedData,
     noise: NoiseSpec,
     with_ids: bool,
     metadata: dict[str, Any],
-    velocity_sigma_m_s: float = 0.1,
+    initial_rng: np.random.Generator,
+    drawn: float,
+    stated: float,
+    initial_sigmas: InitialSigmas = InitialSigmas(),
 ) -> Sequence:
-    """The ``Sequence`` of simulated data: sensors, merged stream, truth, initial state
-    (the true start, stated with small sigmas), anchors in ``anchor_order``."""
+    """The ``Sequence`` of simulated data: sensors, merged stream, truth, initial state,
+    anchors in ``anchor_order``.
+
+    The initial state is a draw around the true start with the sigmas it states (drawn
+    sigmas scaled by ``drawn``, stated ones by ``stated``), so that an estimator that takes
+    it as its prior starts consistent rather than over-confident or over-cautious.
+    """
     kinematics = data.kinematics
     planar = data.inertial.accel is None
     truth = ground_truth(data)
-    start_rotation = truth.history.pose.rotations[0]
     order = data.anchor_order
+    initial_state = initial_state_draw(truth.history.pose, kinematics.velocity[0], initial_rng, drawn, stated, initial_sigmas)
     return Sequence(
         name=name,
         dimension=kinematics.dimension,
@@ -132,13 +182,7 @@ def build_sequence(
         stream=lambda: merged_stream(data, with_ids),
         ground_truth=truth,
         noise=noise,
-        initial_state=InitialState(
-            t=float(kinematics.t[0]),
-            position=kinematics.position[0].copy(),
-            rotation=np.array(start_rotation, dtype=float),
-            velocity=kinematics.velocity[0].copy(),
-            velocity_sigma_m_s=velocity_sigma_m_s,
-        ),
+        initial_state=initial_state,
         known_landmarks=LandmarkMap(
             ids=data.landmark_ids[order].copy(), positions=data.landmark_positions[order].copy(), frame=Frame.WORLD
         ),

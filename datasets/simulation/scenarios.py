@@ -117,8 +117,9 @@ def _noise_factors(noise_scale: float) -> tuple[float, float]:
 
 def _generators(seed: int) -> dict[str, np.random.Generator]:
     """Independent generators per purpose, all from ``seed``."""
-    children = np.random.SeedSequence(seed).spawn(3)
-    return {name: np.random.default_rng(child) for name, child in zip(("inertial", "landmarks", "spare"), children)}
+    children = np.random.SeedSequence(seed).spawn(4)
+    names = ("inertial", "landmarks", "spare", "initial")
+    return {name: np.random.default_rng(child) for name, child in zip(names, children)}
 
 
 def _metadata(scenario: str, seed: int, options: BaseModel, **extra: object) -> dict[str, object]:
@@ -200,7 +201,7 @@ def _simulate_spatial(
     rates = {"imu": options.imu_rate_hz, "landmarks": options.landmark_rate_hz}
     noise = _noise_spec(nominal.scaled(stated), float(np.mean(sigmas)) * stated, rates, planar=False)
     metadata = _metadata(scenario, seed, options, imu_noise_source=f"gtsam Data/{KITTI_IMU_METADATA}", **extra_metadata)
-    return build_sequence(f"sim:{scenario}", data, noise, options.ids, metadata)
+    return build_sequence(f"sim:{scenario}", data, noise, options.ids, metadata, generators["initial"], drawn, stated)
 
 
 # The Aghili case study world: a 30 x 60 m terrain (x across, y along) and seven via points.
@@ -354,7 +355,7 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
         path_length_m=float(motion.path.length_m), laser_bearing_sigma_deg=3.75,
         laser_range_sigma_m={"up_to_10_m": 0.15, "beyond_10_m": 0.25},
     )
-    return build_sequence("sim:guerreiro-loop", data, noise, options.ids, metadata)
+    return build_sequence("sim:guerreiro-loop", data, noise, options.ids, metadata, generators["initial"], drawn, stated)
 
 
 _SCENARIOS: dict[str, tuple[type[BaseModel], Callable[[int, BaseModel], Sequence], str]] = {
