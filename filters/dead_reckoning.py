@@ -1,13 +1,14 @@
 """Dead reckoning: integrate the motion sensors, never correct. The lower bound of every table.
 
 Three inputs, whichever the sequence provides (first match wins):
-- 3-D IMU: strap-down integration (exact rotation increment, trapezoid-free Euler for
-  velocity and position at the IMU rate) from ``sequence.initial_state`` with zero biases;
+- 3-D IMU: strap-down integration over each interval with the average of its two end
+  samples (exact rotation increment, mid-interval rotation for the specific force) from ``sequence.initial_state`` with zero biases;
   the covariance of the 15-dim error state [dtheta (body, right perturbation), dv (world),
   dp (world), db_g, db_a] propagated with the first-order model and the sequence's stated
   IMU noise densities, so NEES of dead reckoning is meaningful too.
 - 2-D odometry: compose relative poses, or integrate (v_forward, omega) as a unicycle.
-- 2-D gyro only: heading from the gyro, the initial body-frame velocity held constant.
+- 2-D gyro only: heading from the gyro, the initial body-frame velocity held constant (its
+  covariance is approximate: increments are treated as independent).
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ class DeadReckoning:
         start = sequence.initial_state
         self.recorder = EstimateRecorder(self.dimension)
         self.t = float(start.t)
+        self.last_imu: tuple[np.ndarray, np.ndarray] | None = None
         self.position = np.array(start.position, dtype=float)
         velocity = np.zeros(self.dimension) if start.velocity is None else np.array(start.velocity, dtype=float)
         if self.dimension == 3:
@@ -116,11 +118,16 @@ class DeadReckoning:
         if not (np.all(np.isfinite(sample.gyro)) and np.all(np.isfinite(sample.accel))):
             raise InputError(f"non-finite IMU sample at t={sample.t:.6f} s")
         dt = self._advance_time(sample.t)
-        if dt == 0.0:
+        current = (np.asarray(sample.gyro, float), np.asarray(sample.accel, float))
+        previous, self.last_imu = self.last_imu, current
+        if dt == 0.0 or previous is None:
             return
-        omega, accel = np.asarray(sample.gyro, float), np.asarray(sample.accel, float)
+        # the interval's average of its two end samples (second order, as Aghili eq. (34))
+        omega = 0.5 * (previous[0] + current[0])
+        accel = 0.5 * (previous[1] + current[1])
         increment = so3_exp(omega * dt)
-        world_accel = self.rotation @ accel + GRAVITY_M_S2
+        # velocity and position with the rotation at mid-interval
+        world_accel = self.rotation @ so3_exp(0.5 * omega * dt) @ accel + GRAVITY_M_S2
         # error-state transition, first order in dt (right perturbation on rotation)
         transition = np.eye(15)
         transition[0:3, 0:3] = increment.T
