@@ -73,7 +73,7 @@ def cast_rays(world: World, origins: np.ndarray, directions: np.ndarray, max_ran
     with np.errstate(divide="ignore", invalid="ignore"):
         lam = (offset[..., 0] * edge[..., 1] - offset[..., 1] * edge[..., 0]) / denominator
         mu = (offset[..., 0] * d_xy[..., 1] - offset[..., 1] * d_xy[..., 0]) / denominator
-    z = origins[:, None, 2] + lam * directions[:, None, 2]
+        z = origins[:, None, 2] + lam * directions[:, None, 2]
     valid = (np.abs(denominator) > 1e-12) & (lam > 0) & (mu >= 0) & (mu <= 1) & (z >= 0) & (z <= world.wall_height[None])
     wall = np.where(valid, lam, np.inf).min(axis=1)
     with np.errstate(divide="ignore"):
