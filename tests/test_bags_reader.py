@@ -51,7 +51,7 @@ def test_stream_is_stamp_ordered_and_complete(bags, kind):
     imu = next(m for _, m in items if isinstance(m, ImuSample))
     assert imu.accel[2] == pytest.approx(9.81, abs=0.05)
     t, positions, quats = read_ground_truth(path, topics.ground_truth, ReadReport())
-    assert len(t) == 25 and np.allclose(positions[0], [15.0, 2.5, 1.0]) and np.allclose(quats[0], [1, 0, 0, 0])
+    assert len(t) == 26 and np.allclose(positions[0], [15.0, 2.5, 1.0]) and np.allclose(quats[0], [1, 0, 0, 0])
     fixes = [m for _, m in items if isinstance(m, GpsFix)]
     # the GPS origin is the first fix, the truth's first position: ENU differences match the truth
     expected = np.array([np.interp(fixes[1].t, t, positions[:, k]) for k in range(3)]) - positions[0]

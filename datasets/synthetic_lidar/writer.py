@@ -119,13 +119,14 @@ def enu_to_geodetic(enu: np.ndarray, origin: tuple[float, float, float]) -> np.n
 
 def _events(options: LidarBagOptions) -> Iterator[tuple[int, str, float]]:
     """(log time ns, topic, stamp s) in log-time order. A cloud is logged at its sweep end."""
-    def stream(topic: str, rate: float, log_delay: float) -> Iterator[tuple[int, str, float]]:
-        count = int(np.floor(options.duration_s * rate + 1e-9))
+    def stream(topic: str, rate: float, log_delay: float, through_end: bool = False) -> Iterator[tuple[int, str, float]]:
+        # ground truth runs through the end of the last sweep, so every frame can be scored
+        count = int(np.floor(options.duration_s * rate + 1e-9)) + (1 if through_end else 0)
         for k in range(count):
             stamp = k / rate
             yield int(round((EPOCH_S + stamp + log_delay) * 1e9)), topic, stamp
 
-    streams = [stream(LIDAR_TOPIC, options.lidar_rate_hz, 1.0 / options.lidar_rate_hz), stream(IMU_TOPIC, options.imu_rate_hz, 0.0), stream(GT_TOPIC, options.gt_rate_hz, 0.0)]
+    streams = [stream(LIDAR_TOPIC, options.lidar_rate_hz, 1.0 / options.lidar_rate_hz), stream(IMU_TOPIC, options.imu_rate_hz, 0.0), stream(GT_TOPIC, options.gt_rate_hz, 0.0, through_end=True)]
     if options.gps_rate_hz > 0:
         streams.append(stream(GPS_TOPIC, options.gps_rate_hz, 0.0))
     return heapq.merge(*streams)

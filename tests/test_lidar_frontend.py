@@ -1,0 +1,88 @@
+"""The lidar front end end to end on synthetic bags (ROS 1 and ROS 2), and its pieces:
+KISS-ICP timestamps, the SE(3) deskew against an independent reference, odometry."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from datasets.lidar.kiss_icp_odometry import deskew_to_end, normalized_point_times, se3_log
+from datasets.rotations import so3_exp
+from datasets.synthetic_lidar import write_lidar_bag
+from workbench.commands.bag import bag_command
+
+# 3 s from 5 s into the loop: the end of the bottom corridor and the first turn
+SEGMENT = {"duration_s": "3", "start_s": "5", "columns": "1024"}
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("frontend")
+    out = {}
+    for name, fmt, extra in (("ros1", "ros1", {}), ("ros2", "ros2", {"storage": "mcap"})):
+        bag = write_lidar_bag(root / f"corridor_{name}", 7, fmt, {**SEGMENT, **extra})
+        rows = bag_command(bag, root / f"out_{name}", None, None, None, "dead-reckoning", ["kiss.max_num_threads=1"], plots=False, quiet=True)
+        assert [row["estimator"] for row in rows] == ["kiss-icp (front end)", "dead-reckoning"]
+        out[name] = root / f"out_{name}"
+    return out
+
+
+@pytest.mark.parametrize("name", ["ros1", "ros2"])
+def test_corner_precision_recall_and_ate(runs, name):
+    metrics = json.loads((runs[name] / "frontend" / "metrics.json").read_text())
+    assert metrics["frames"] == 30
+    assert metrics["frames_scored"] == 30
+    assert metrics["corner_precision"] >= 0.95, metrics
+    assert metrics["corner_recall"] >= 0.80, metrics
+    assert metrics["observable"] >= 100
+    assert metrics["kiss_icp_ate_rmse_m"] is not None and metrics["kiss_icp_ate_rmse_m"] < 0.5
+    assert metrics["skipped"] == [] and metrics["nonfinite_points_dropped"] > 0
+    table = (runs[name] / "table.md").read_text().splitlines()
+    assert table[0].startswith("| estimator | status | ATE RMSE [m]") and len(table) == 4
+    assert "| dead-reckoning | ok |" in table[3]
+    csv_lines = (runs[name] / "table.csv").read_text().splitlines()
+    assert csv_lines[0].startswith("estimator,status,ate_rmse_m") and len(csv_lines) == 3
+    tum = np.loadtxt(runs[name] / "frontend" / "kiss_icp.tum")
+    assert tum.shape == (30, 8)
+    corners = np.genfromtxt(runs[name] / "frontend" / "corners.csv", delimiter=",", names=True)
+    assert len(corners) == metrics["detections"] and np.all(corners["cov_xx"] > 0)
+    assert (runs[name] / "dead-reckoning" / "metrics.json").is_file()
+
+
+def test_ros1_and_ros2_agree(runs):
+    one = json.loads((runs["ros1"] / "frontend" / "metrics.json").read_text())
+    two = json.loads((runs["ros2"] / "frontend" / "metrics.json").read_text())
+    # same world and seed, float32 "time" seconds vs uint32 "t" nanoseconds: same front end
+    assert one["detections"] == pytest.approx(two["detections"], rel=0.05)
+    assert one["kiss_icp_ate_rmse_m"] == pytest.approx(two["kiss_icp_ate_rmse_m"], abs=0.05)
+
+
+def test_normalized_times():
+    assert normalized_point_times(None).size == 0
+    assert normalized_point_times(np.full(5, 0.03)).size == 0  # one time: KISS-ICP would divide by zero
+    assert np.allclose(normalized_point_times(np.array([0.02, 0.07, 0.12])), [0.0, 0.5, 1.0])
+
+
+def _twist_matrix(xi: np.ndarray) -> np.ndarray:
+    matrix = np.zeros((4, 4))
+    rho, phi = xi[:3], xi[3:]
+    matrix[:3, :3] = np.array([[0, -phi[2], phi[1]], [phi[2], 0, -phi[0]], [-phi[1], phi[0], 0]])
+    matrix[:3, 3] = rho
+    return matrix
+
+
+def test_se3_log_and_deskew_against_matrix_exponential():
+    rng = np.random.default_rng(3)
+    xi = np.array([0.15, -0.02, 0.01, 0.01, -0.02, 0.3])
+    delta = expm(_twist_matrix(xi))
+    assert np.allclose(se3_log(delta), xi, atol=1e-10)
+    points = rng.normal(size=(20, 3)) * 5.0
+    s = rng.uniform(0.0, 1.0, 20)
+    expected = np.array([(expm((si - 1.0) * _twist_matrix(xi)) @ np.append(p, 1.0))[:3] for p, si in zip(points, s)])
+    assert np.allclose(deskew_to_end(points, s, delta), expected, atol=1e-10)
+    assert np.allclose(deskew_to_end(points, np.ones(20), delta), points)
+    assert np.allclose(so3_exp(xi[3:]), delta[:3, :3])
