@@ -78,10 +78,10 @@ class UtiasOptions(BaseModel):
     range_sigma_fraction: float = Field(0.05, ge=0, description="range noise std as a fraction of the range")
     range_sigma_floor_m: float = Field(0.05, gt=0, description="lower bound of the range noise std [m]")
     odometry_sigma_v_m_s: float = Field(
-        0.1, gt=0, description="per-sample white-noise std of the forward velocity [m/s] (fits the drift vs Vicon over 1-20 s)"
+        0.15, gt=0, description="per-sample white-noise std of the forward velocity [m/s] (fits the 20 s drift vs Vicon of robot 1)"
     )
     odometry_sigma_omega_rad_s: float = Field(
-        0.3, gt=0, description="per-sample white-noise std of the angular velocity [rad/s] (fits the heading drift vs Vicon)"
+        0.3, gt=0, description="per-sample white-noise std of the angular velocity [rad/s] (fits the 1-20 s heading drift vs Vicon of robot 1)"
     )
     grid_step_s: float = Field(0.02, gt=0, description="row spacing of the resampled files [s]")
     drop_stale_repeats: bool = Field(True, description="drop a sighting identical to the previous one of the same barcode")
@@ -89,6 +89,12 @@ class UtiasOptions(BaseModel):
     max_heading_rate_rad_s: float = Field(3.0, gt=0, description="Vicon heading changes faster than this are glitches")
     duration_s: float | None = Field(None, gt=0, description="use only the first duration_s seconds")
     odometry_gap_s: float = Field(0.5, gt=0, description="odometry gaps longer than this are listed in the metadata")
+    odometry_delay_s: float = Field(
+        0.0, ge=0, description="calibration: shift the odometry (and gyro) later by this [s] (the commanded velocity leads the motion by about 0.16 s)"
+    )
+    odometry_speed_scale: float = Field(
+        1.0, gt=0, description="calibration: multiply the forward velocity (the commanded speed overstates the motion by several percent)"
+    )
 
 
 @dataclass(frozen=True)
@@ -311,7 +317,8 @@ def load_mrclam(folder: Path, robot: int, config: UtiasOptions, name: str | None
 
     def stream() -> Iterator[Measurement]:
         scan_index = 0
-        for t, (speed, rate) in zip(odo_t, odo_values):
+        for t, (speed, rate) in zip(odo_t + config.odometry_delay_s, odo_values):
+            speed = speed * config.odometry_speed_scale
             while scan_index < len(scans) and scans[scan_index].t < t:
                 yield _with_ids(scans[scan_index], ids_visible)
                 scan_index += 1

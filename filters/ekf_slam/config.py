@@ -21,6 +21,9 @@ class EkfSlamConfig(BaseModel):
     )
     gate_probability: float = Field(0.99, gt=0, lt=1, description="chi-square gate probability of JCBB (individual and joint)")
     max_nodes: int = Field(DEFAULT_MAX_NODES, ge=1, description="cap on JCBB interpretation-tree nodes per scan")
+    new_landmark_probability: float = Field(
+        0.999, gt=0, lt=1, description="JCBB: an unassigned sighting starts a landmark only when it is outside this chi-square gate of every landmark (between the gates it is discarded)"
+    )
     id_gate_probability: float | None = Field(
         0.9999, gt=0, lt=1, description="with ids: reject a sighting whose NIS exceeds this chi-square quantile (None: never)"
     )

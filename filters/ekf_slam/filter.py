@@ -302,7 +302,10 @@ class EkfSlam:
         self.recorder.extra("jcbb_nodes", [t, result.nodes, float(result.truncated)])
         paired = result.assignments >= 0
         assignments[paired] = subset[result.assignments[paired]]
-        new = [j for j in range(k) if result.assignments[j] < 0 and result.candidate_counts[j] == 0]
+        # A sighting just outside the association gate is more likely a poorly predicted old
+        # landmark than a new one: only sightings far from every landmark start one.
+        far = distances.min(axis=1) >= chi2_gate(d, max(self.config.new_landmark_probability, self.config.gate_probability))
+        new = [j for j in range(k) if result.assignments[j] < 0 and result.candidate_counts[j] == 0 and far[j]]
         return assignments, new
 
     def _update(self, t: float, points: np.ndarray, noise: np.ndarray, indices: np.ndarray) -> None:
@@ -401,8 +404,8 @@ class EkfSlam:
     def _record(self) -> None:
         layout, P = self.layout, self.covariance
         rotation_matrix = self.vehicle.rotation_matrix()
-        pose_rows = np.r_[np.arange(layout.position.start, layout.position.stop), np.arange(layout.rotation.start, layout.rotation.stop)]
-        pose_cov = pose_covariance_to_interface(rotation_matrix, P[np.ix_(pose_rows, pose_rows)])
+        pose_size = layout.rotation.stop  # position then rotation lead the vehicle block
+        pose_cov = pose_covariance_to_interface(rotation_matrix, P[:pose_size, :pose_size])
         rotation = float(self.vehicle.rotation) if self.dimension == 2 else quat_wxyz_from_matrix(rotation_matrix)
         self.recorder.pose(self.t, self.vehicle.position, rotation, pose_cov)
         if layout.velocity is not None:

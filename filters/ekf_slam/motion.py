@@ -21,7 +21,7 @@ Every Jacobian is checked against finite differences in ``tests/test_ekf_slam.py
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -70,7 +70,7 @@ def predict_odometry_2d(
     input_jacobian[layout.position, 0:2] = rotation
     input_jacobian[layout.rotation, 2] = 1.0
     process = input_jacobian @ np.asarray(increment_cov, float) @ input_jacobian.T
-    new = replace(mean, position=mean.position + rotation @ u_xy, rotation=float(wrap_angle(heading + u_theta)))
+    new = VehicleMean(mean.position + rotation @ u_xy, float(wrap_angle(heading + u_theta)), mean.velocity, mean.gyro_bias)
     return new, transition, process
 
 
