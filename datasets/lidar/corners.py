@@ -18,7 +18,10 @@ and segment merges, never over points):
    all segments of a level at once; then adjacent segments whose joint total-least-squares
    fit has an RMS residual below ``merge_rms_m`` are merged.
 5. **Lines**: total least squares per segment (``end_trim_points`` trimmed at each end, where
-   the two faces of a corner mix).
+   the two faces of a corner mix). Guerreiro et al. (Sec. VI) fit lines with a reduced-space
+   Hough transform instead; TLS is the closed-form choice here, with a first-order covariance.
+   Like the paper, the slab assumes a level sensor: on a tilted platform, level the cloud with
+   the attitude first (the paper projects the profile with roll and pitch).
 6. **Corners**: consecutive segments of one cluster whose directions differ by at least
    ``min_corner_angle_deg`` (and at most 180 minus it) and whose line intersection lies
    within ``max_corner_gap_m`` of both segments' facing ends. The corner is the
