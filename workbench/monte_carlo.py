@@ -2,7 +2,9 @@
 
 Each run of a sweep saves the NEES of every state block of its causal history, per step, in
 ``nees.npz`` (``save_run_nees``); the table and the plots average them over the runs of one
-(dataset, estimator) cell (``average_runs``).
+(dataset, estimator) cell (``average_runs``). The same file keeps the per-axis errors and
+standard deviations of the pose and vector blocks (``error_series``), for the error plots
+with their 3-sigma envelopes.
 
 Per step, a run contributes ``(sum of NEES, sum of dof, units)``: one unit for a pose,
 velocity or bias value; one unit per landmark for a landmark snapshot (all landmarks of a
@@ -31,7 +33,13 @@ from datasets.sequence import Sequence
 from datasets.trajectory_io import save_npz_atomic
 from workbench.metrics.consistency import CONFIDENCE
 from workbench.metrics.data_association import landmark_id_mapping
-from workbench.metrics.state_errors import NeesSeries, landmark_nees_series, nees_series
+from workbench.metrics.state_errors import (
+    NeesSeries,
+    block_error_series,
+    landmark_nees_series,
+    nees_series,
+    pose_error_series,
+)
 
 NEES_FILE = "nees.npz"
 BLOCKS = ("pose", "attitude", "position", "velocity", "gyro_bias", "accel_bias", "landmarks")
@@ -93,11 +101,56 @@ def run_nees(estimate: Estimate, sequence: Sequence) -> dict[str, RunNees]:
     return {block: per_step(values) for block, values in series.items() if block in BLOCKS}
 
 
+@dataclass(frozen=True)
+class ErrorSeries:
+    """Per-axis errors (truth - estimate, in the estimate's convention) and the estimate's
+    standard deviations, per step.
+
+    Attributes:
+        t: times [s], shape (K,).
+        errors: shape (K, k); pose: the interface tangent order (3-D [rotation [rad],
+            body translation [m]]; 2-D [body x, body y [m], heading [rad]]).
+        sigmas: square roots of the covariance diagonal, shape (K, k).
+    """
+
+    t: np.ndarray
+    errors: np.ndarray
+    sigmas: np.ndarray
+
+
+def error_series(estimate: Estimate, sequence: Sequence) -> dict[str, ErrorSeries]:
+    """Errors and sigmas of the causal pose and vector blocks that have covariances and a
+    truth (``state_errors``: truth looked up at the estimate's times)."""
+    truth = sequence.ground_truth
+    if truth is None:
+        return {}
+    found: dict[str, ErrorSeries] = {}
+    pose = estimate.causal.pose
+    if pose is not None and pose.covariances is not None:
+        pose_found = pose_error_series(pose, truth)
+        if pose_found is not None and len(pose_found[0]):
+            t, errors, valid = pose_found
+            found["pose"] = ErrorSeries(t, errors, np.sqrt(np.maximum(np.diagonal(pose.covariances[valid], axis1=1, axis2=2), 0.0)))
+    for name, block in estimate.causal.blocks.items():
+        if block.covariances is None:
+            continue
+        block_found = block_error_series(name, block, truth)
+        if block_found is not None and len(block_found[0]):
+            t, errors, valid = block_found
+            sigmas = np.sqrt(np.maximum(np.diagonal(block.covariances[valid], axis1=1, axis2=2), 0.0))
+            found[str(name)] = ErrorSeries(t, errors, sigmas)
+    return found
+
+
 def save_run_nees(estimate: Estimate, sequence: Sequence, path: Path) -> None:
-    """Write ``run_nees`` as an npz (keys ``{block}_t``, ``_nees``, ``_dof``, ``_units``)."""
+    """Write ``run_nees`` (keys ``{block}_t``, ``_nees``, ``_dof``, ``_units``) and
+    ``error_series`` (keys ``errors_{block}_t``, ``errors_{block}``, ``errors_{block}_sigma``)
+    as one npz."""
     arrays: dict[str, np.ndarray] = {}
     for block, values in run_nees(estimate, sequence).items():
         arrays.update({f"{block}_t": values.t, f"{block}_nees": values.nees, f"{block}_dof": values.dof, f"{block}_units": values.units})
+    for block, series in error_series(estimate, sequence).items():
+        arrays.update({f"errors_{block}_t": series.t, f"errors_{block}": series.errors, f"errors_{block}_sigma": series.sigmas})
     save_npz_atomic(Path(path), arrays)
 
 
@@ -109,6 +162,13 @@ def load_run_nees(path: Path) -> dict[str, RunNees]:
             for block in BLOCKS
             if f"{block}_t" in data
         }
+
+
+def load_error_series(path: Path) -> dict[str, ErrorSeries]:
+    """The error series of a file written by ``save_run_nees``."""
+    with np.load(Path(path)) as data:
+        blocks = [key[len("errors_") : -len("_t")] for key in data.files if key.startswith("errors_") and key.endswith("_t")]
+        return {block: ErrorSeries(data[f"errors_{block}_t"], data[f"errors_{block}"], data[f"errors_{block}_sigma"]) for block in blocks}
 
 
 @dataclass(frozen=True)

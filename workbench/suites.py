@@ -55,8 +55,9 @@ class DatasetSpec:
         options: ``--data`` options.
         label: the name in tables, plots and folder names (default: ``name``); two specs of
             one dataset with different options need different labels.
-        seeded: False for a recording whose content does not depend on the seed: it is run
-            once (seed 0) whatever ``--runs`` says, since more runs would only repeat it.
+        seeded: False for a recording: it is run once (seed 0) whatever ``--runs`` says,
+            since more runs would repeat the same measurements (for ``kitti-imu-gps`` the seed
+            only picks which GPS fixes are held out).
         generate: ``"module:function"`` writing the file the dataset reads, called as
             ``function(path: Path)`` with the path the name points to, before the sweep,
             when that file does not exist yet (the synthetic lidar bag).
@@ -123,12 +124,27 @@ ALL_ESTIMATORS: tuple[EstimatorSpec, ...] = (
 
 
 def write_corridor_bag(path: Path) -> None:
-    """The synthetic lidar corridor as a ROS 1 bag at ``path`` (seed 0, default options).
+    """The synthetic lidar corridor as a ROS 1 bag at ``path`` (seed 0, default options),
+    with its corner sidecar beside it.
 
-    The bag is a fixed recording: every run reads the same file (``seeded=False``)."""
+    Written in a scratch folder and moved into place bag last, so that a killed sweep never
+    leaves a partial bag that the next one would take for a finished one. The bag is a
+    fixed recording: every run reads the same file (``seeded=False``)."""
+    import os
+    import shutil
+
     from datasets.synthetic_lidar import write_lidar_bag
 
-    write_lidar_bag(Path(path), 0, "ros1", {})
+    path = Path(path)
+    scratch = path.parent / f".partial-{path.name}"
+    shutil.rmtree(scratch, ignore_errors=True)
+    scratch.mkdir(parents=True)
+    written = write_lidar_bag(scratch / path.name, 0, "ros1", {})
+    for companion in scratch.iterdir():
+        if companion != written:
+            os.replace(companion, path.parent / companion.name)
+    os.replace(written, path)
+    shutil.rmtree(scratch, ignore_errors=True)
 
 
 SUITES: dict[str, Suite] = {

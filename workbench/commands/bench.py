@@ -1,0 +1,106 @@
+"""``workbench bench [SUITE] --runs N --out DIR [--scheduler ADDRESS] [--workers K]``.
+
+Runs a suite (``workbench.suites``) as a Monte Carlo sweep (``workbench.sweep``), then
+writes ``DIR/table.md``, ``table.tex``, ``table.csv`` (``workbench.tables``) and the
+figures in ``DIR/plots/`` (``workbench.report_plots``), and prints the Markdown table and
+the plots folder. Re-running the same command resumes: finished runs are not redone.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from datasets.errors import InputError
+from workbench.suites import DEFAULT_SUITE, SUITES, get_suite
+
+
+def bench(
+    suite_name: str,
+    runs: int | None,
+    out: Path,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    plots: bool = True,
+    run_plots: bool = False,
+    show_progress: bool | None = None,
+) -> dict[str, Path]:
+    """Run the suite and write tables and plots; returns the written table paths and the
+    plots folder (key ``plots``)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from workbench.sweep import make_backend, pending_cells, plan_sweep, run_sweep
+    from workbench.tables import write_tables
+
+    suite = get_suite(suite_name)
+    runs = suite.default_runs if runs is None else runs
+    out = Path(out).resolve()
+    interactive = sys.stderr.isatty() if show_progress is None else show_progress
+    backend = make_backend(scheduler, workers)
+    try:
+        started = time.perf_counter()
+        plan = plan_sweep(suite, runs, out, backend)
+        for note in plan.notes:
+            typer.echo(f"note: {note}", err=True)
+        pending, done = pending_cells(plan)
+        typer.echo(
+            f"suite {suite.name}: {len(plan.cells)} runs ({done} already done, {len(pending)} to run) on {backend.describe()}",
+            err=True,
+        )
+        with Progress(
+            TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("runs"),
+            TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
+            disable=not interactive, transient=False,
+        ) as progress:
+            task = progress.add_task(f"bench {suite.name}", total=len(pending))
+
+            def on_done(cell, outcome) -> None:
+                progress.advance(task)
+                if not interactive:
+                    status = f"failed: {outcome.error}" if outcome.error else "done"
+                    finished = int(progress.tasks[0].completed)
+                    typer.echo(f"[{finished}/{len(pending)}] {cell.describe()}: {status} ({outcome.seconds:.1f} s)", err=True)
+
+            summary = run_sweep(plan, backend, run_plots=run_plots, on_done=on_done)
+        written: dict[str, Path] = dict(write_tables(plan))
+        if plots:
+            from workbench.report_plots import write_dataset_plots
+
+            futures = [backend.submit(write_dataset_plots, plan, dataset) for dataset in plan.datasets]
+            for future in futures:
+                future.result()
+        written["plots"] = out / "plots"
+        typer.echo(
+            f"{summary.ran} run(s) done, {summary.skipped} skipped (finished before), {len(summary.failed)} failed; "
+            f"{time.perf_counter() - started:.1f} s",
+            err=True,
+        )
+        return written
+    finally:
+        backend.close()
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("bench")
+    def bench_command(
+        suite: Annotated[str, typer.Argument(help=f"suite: {', '.join(SUITES)}")] = DEFAULT_SUITE,
+        runs: Annotated[Optional[int], typer.Option("--runs", help="Monte Carlo runs (seeds) per pair; default: the suite's")] = None,
+        out: Annotated[Optional[Path], typer.Option("--out", help="output folder (default: runs/<suite>)")] = None,
+        scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="Dask scheduler address (default: local processes)")] = None,
+        workers: Annotated[Optional[int], typer.Option("--workers", help="local worker processes (default: CPU count)")] = None,
+        plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the comparison figures")] = True,
+        run_plots: Annotated[bool, typer.Option("--run-plots", help="also write each run folder's own figures (slower)")] = False,
+    ) -> None:
+        """Run a benchmark suite: every estimator on every dataset it can run on, N seeds,
+        then the comparison table and plots. Re-running resumes."""
+        if workers is not None and workers < 1:
+            raise InputError(f"--workers must be at least 1, got {workers}")
+        written = bench(suite, runs, out or Path("runs") / suite, scheduler, workers, plots, run_plots)
+        typer.echo(written["md"].read_text(), nl=False)
+        typer.echo(f"table: {written['md']} (.tex, .csv)")
+        if plots:
+            typer.echo(f"plots: {written['plots']}")
