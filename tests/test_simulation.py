@@ -325,6 +325,11 @@ def test_ids_can_be_withheld_but_truth_keeps_them():
     truth_ids = sequence.ground_truth.scan_ids
     assert len(truth_ids) == len(scans)
     assert all(t == scan.t and len(ids) == scan.count for (t, ids), scan in zip(truth_ids, scans))
+    # Withholding ids changes nothing else: same points, same noise.
+    with_ids = scans_of(load_scenario("guerreiro-loop", 2, {"duration_s": "10"}))
+    for withheld, shown, (_, true_ids) in zip(scans, with_ids, truth_ids, strict=True):
+        np.testing.assert_array_equal(withheld.points, shown.points)
+        np.testing.assert_array_equal(shown.ids, true_ids)
 
 
 def test_empty_scans_are_emitted_with_zero_rows():

@@ -193,7 +193,10 @@ def anchor_order(positions: np.ndarray, visible_first: np.ndarray, origin: np.nd
     """
     visible = np.flatnonzero(visible_first)
     hidden = np.flatnonzero(~visible_first)
-    by_distance = lambda indices: indices[np.argsort(np.linalg.norm(positions[indices] - origin, axis=1), kind="stable")]
+
+    def by_distance(indices: np.ndarray) -> np.ndarray:
+        return indices[np.argsort(np.linalg.norm(positions[indices] - origin, axis=1), kind="stable")]
+
     head: list[int] = []
     if len(visible) >= 2:
         points = positions[visible]
