@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from datasets.errors import InputError
-from datasets.lidar.corner_truth import observable, read_corner_truth
+from datasets.lidar.corner_truth import observable, read_corner_truth, true_corner_ids
+from datasets.trajectory import Trajectory
 from datasets.synthetic_lidar import sidecar_path, write_lidar_bag
 from datasets.synthetic_lidar.lidar import LidarModel, cast_rays, sweep
 from datasets.synthetic_lidar.path import LoopPath
@@ -110,3 +111,16 @@ def test_options_are_checked(tmp_path):
     assert bag.name == "y.bag" and bag.is_file() and not list(tmp_path.glob(".*partial*"))
     with pytest.raises(InputError, match="exists already"):
         write_lidar_bag(tmp_path / "y.bag", 0, "ros1", {})
+
+
+def test_true_corner_ids(tmp_path):
+    bag = write_lidar_bag(tmp_path / "ids", 0, "ros1", {"duration_s": "0.1", "columns": "64"})
+    truth = read_corner_truth(sidecar_path(bag))
+    yaw = 0.3
+    quat = np.array([[np.cos(yaw / 2), 0, 0, np.sin(yaw / 2)]] * 2)
+    pose = Trajectory(np.array([0.0, 1.0]), np.array([[15.0, 2.5, 1.0]] * 2), quat)
+    rotation = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
+    body = (truth.positions[[3, 7]] - [15.0, 2.5, 1.0]) @ rotation  # R^T (rho - r)
+    detections = np.vstack([body + [0.05, -0.03, 0.0], [[50.0, 50.0, 0.0]]])
+    (t, ids), = true_corner_ids([(0.5, detections), (0.6, np.zeros((0, 3))), (2.0, detections)], truth, pose)
+    assert t == 0.5 and list(ids) == [int(truth.ids[3]), int(truth.ids[7]), -1]

@@ -186,3 +186,22 @@ def score_corners(frames: list[tuple[float, np.ndarray]], truth: CornerTruth, tr
         "frames_scored": scored,
         "tolerance_m": tolerance_m,
     }
+
+
+def true_corner_ids(frames: list[tuple[float, np.ndarray]], truth: CornerTruth, trajectory: Trajectory, tolerance_m: float = 0.1) -> tuple[tuple[float, np.ndarray], ...]:
+    """``GroundTruth.scan_ids`` for front-end corner scans: per frame ``(t, ids (k,))`` with
+    the id of the true corner within ``tolerance_m`` (horizontally) of each detection, -1 for
+    a detection near none (unknown to the association scoring). Frames without detections
+    or outside the truth's time span are left out."""
+    result = []
+    for t, detections in frames:
+        detections = np.asarray(detections)
+        if len(detections) == 0 or not trajectory.t[0] <= t <= trajectory.t[-1]:
+            continue
+        positions, quats = interpolate_poses(trajectory, np.array([t]))
+        truth_body = (truth.positions - positions[0]) @ matrix_from_quat_wxyz(quats[0])
+        gaps = np.linalg.norm(detections[:, None, :2] - truth_body[None, :, :2], axis=2)
+        nearest = np.argmin(gaps, axis=1)
+        ids = np.where(gaps[np.arange(len(detections)), nearest] <= tolerance_m, truth.ids[nearest], -1)
+        result.append((float(t), ids.astype(int)))
+    return tuple(result)

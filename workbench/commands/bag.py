@@ -35,6 +35,7 @@ TABLE_COLUMNS = (
     ("rpe_trans_rmse_m", "RPE trans RMSE [m]"),
     ("rpe_rot_rmse_deg", "RPE rot RMSE [deg]"),
     ("nees_pose_mean", "NEES pose mean"),
+    ("association_precision", "assoc. precision"),
     ("time_per_step_ms_median", "step median [ms]"),
     ("time_total_s", "total [s]"),
 )
@@ -121,6 +122,23 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
     return metrics
 
 
+def with_corner_ids(sequence, source):
+    """The sequence with ``GroundTruth.scan_ids`` of the front end's corner scans (true ids
+    from the sidecar, -1 for false detections), so association can be scored; unchanged
+    without a sidecar or ground-truth poses."""
+    from dataclasses import replace
+
+    from datasets.lidar.corner_truth import read_corner_truth, true_corner_ids
+
+    sidecar = sequence.metadata.get("corner_sidecar")
+    truth = sequence.ground_truth
+    if not sidecar or truth is None or truth.pose is None or not source.front_end.settings.corners:
+        return sequence
+    frames = [(f.t, f.corners.points) for f in source.front_end.frames if len(f.corners.points)]
+    scan_ids = true_corner_ids(frames, read_corner_truth(Path(sidecar)), truth.pose)
+    return replace(sequence, ground_truth=replace(truth, scan_ids=scan_ids))
+
+
 def _status(text: str, limit: int = 160) -> str:
     """One table-safe line: no newlines or pipes, at most ``limit`` characters."""
     flat = " ".join(text.split()).replace("|", "/")
@@ -200,6 +218,7 @@ def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str |
     for line in source.report.lines():
         typer.echo(f"warning: {path}: {line}", err=True)
 
+    sequence = with_corner_ids(sequence, source)
     rows = [{"estimator": "kiss-icp (front end)", "status": "ok", "ate_rmse_m": front["kiss_icp_ate_rmse_m"], "time_per_step_ms_median": front["kiss_icp_ms_mean"]}]
     data_options = tuple(options.items())
     for name in names:
