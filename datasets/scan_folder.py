@@ -50,8 +50,8 @@ class ScanFolderOptions(BaseModel):
     max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
     odometry: bool = Field(True, description="KISS-ICP odometry")
     corners: bool = Field(True, description="corner landmarks")
-    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings")
-    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings")
+    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)")
+    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings, as corner.KEY=VALUE (listed below)")
 
 
 def _cloud_from_records(records: np.ndarray, names: tuple[str, ...], stamp: float, path: Path, time_unit: str) -> tuple[np.ndarray, np.ndarray | None]:
@@ -256,4 +256,4 @@ def describe() -> list[str]:
     """Option lines for ``workbench list --verbose``."""
     from datasets.options import describe_model
 
-    return describe_model(ScanFolderOptions)
+    return describe_model(ScanFolderOptions) + [f"kiss.{line}" for line in describe_model(KissIcpSettings)] + [f"corner.{line}" for line in describe_model(CornerConfig)]

@@ -57,8 +57,8 @@ class BagOptions(BaseModel):
     max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
     odometry: bool = Field(True, description="KISS-ICP odometry")
     corners: bool = Field(True, description="corner landmarks")
-    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings")
-    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings")
+    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)")
+    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings, as corner.KEY=VALUE (listed below)")
 
 
 def nest_dotted(options: dict[str, str]) -> dict[str, object]:

@@ -1,0 +1,3 @@
+"""ROS 1 / ROS 2 bags through rosbags' AnyReader: reading (``reader``), PointCloud2 decoding
+(``pointcloud2``), NavSatFix to local ENU (``gps``), and the ``bag:PATH`` dataset
+(``source``). Submodules are imported on use (rosbags and KISS-ICP load only when needed)."""
