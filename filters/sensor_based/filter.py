@@ -1,0 +1,386 @@
+"""The Guerreiro et al. (2013) sensor-based SLAM filter, registered as ``sensor-based``.
+
+Robocentric LTV Kalman filter: state = body-frame velocity, rate-gyro bias and body-frame
+landmarks (optionally with line directions); inputs = rate gyro (``GyroSample``, or the
+gyro of an ``ImuSample``: the accelerometer is unused) and ``LandmarkScan`` (body-frame
+points). Prediction at every gyro sample (``dynamics.propagate``, eq. (10)), association by
+JCBB (``filters.association``) or by the scan's ids, Kalman update (``update``), landmark
+management (``landmark_management``).
+
+Multirate: the paper assumes synchronised gyro and laser; here ``A(t, y)`` holds each
+visible feature's last measured value between scans (stale by at most one scan period;
+it enters only through the tiny ``M(y) b`` bias term). The rate is held from the previous
+sample (zero-order hold: forward Euler evaluates ``A`` at the start of the step), and long
+steps are split into sub-steps of at most ``max_step_s``.
+
+Exported blocks (DESIGN.md): ``velocity`` (body frame), ``gyro_bias`` and ``landmarks``
+snapshots (body frame, the filter's own map ids), after every scan. There is no world pose
+in this estimator's causal history (robocentric).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from datasets.errors import InputError
+from datasets.estimate import Estimate, EstimateRecorder
+from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
+from datasets.rotations import matrix_from_quat_wxyz, rot2
+from datasets.sequence import Sequence
+from datasets.state import BlockName, Frame, LandmarkMap
+from filters.association import associate_jcbb, chi2_gate
+from filters.sensor_based.dynamics import ProcessNoise, propagate, rate_dimension
+from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
+from filters.sensor_based.state import FilterState
+from filters.sensor_based.update import kalman_update
+
+DEG = math.pi / 180.0
+
+
+class SensorBasedConfig(BaseModel):
+    """Options of the sensor-based filter (defaults: the paper's section V where it gives one)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    sigma_velocity_m_s: float = Field(0.1, ge=0, description="sigma_v: velocity random walk [m/s/sqrt(s)] (paper 0.1)")
+    sigma_gyro_bias_rad_s: float = Field(
+        5.7e-5 * DEG, ge=0, description="sigma_br: gyro-bias random walk [rad/s/sqrt(s)] (paper 5.7e-5 deg/s)"
+    )
+    sigma_landmark_m: float = Field(0.05, ge=0, description="sigma_p: landmark disturbance [m/sqrt(s)] (paper 0.05)")
+    sigma_direction: float = Field(0.01, ge=0, description="disturbance of direction features [1/sqrt(s)]")
+    gyro_noise_density: float | None = Field(
+        None,
+        ge=0,
+        description="gyro white noise [rad/s/sqrt(Hz)] injected into the landmarks through G; None: the dataset's stated value (0 if none)",
+    )
+    initial_velocity_sigma_m_s: float | None = Field(
+        None, gt=0, description="prior std of the body velocity; None: the dataset's (2 m/s when the velocity is unknown)"
+    )
+    initial_velocity_error_m_s: list[float] | None = Field(
+        None, description="added to the dataset's initial body velocity (to show convergence from a wrong guess)"
+    )
+    initial_gyro_bias_rad_s: list[float] | None = Field(None, description="initial bias guess (default zero)")
+    initial_gyro_bias_sigma_rad_s: float | None = Field(
+        None, gt=0, description="prior bias std; None: the dataset's stated value (0.05 rad/s if none)"
+    )
+    association: Literal["jcbb", "ids"] = Field(
+        "jcbb", description="jcbb, or ids (use the scan's ids when it has them; JCBB otherwise)"
+    )
+    gate_probability: float = Field(0.99, gt=0, lt=1, description="chi-square gate probability (individual and joint)")
+    max_jcbb_nodes: int = Field(20_000, ge=1, description="cap on JCBB interpretation-tree nodes per scan")
+    association_window_s: float = Field(
+        20.0, gt=0, description="associate only landmarks seen within this many seconds (the paper's I_cur)"
+    )
+    use_directions: bool = Field(False, description="use the scan's line directions as direction landmarks")
+    direction_sigma_rad: float = Field(2.0 * DEG, gt=0, description="std of a measured line direction [rad]")
+    max_step_s: float = Field(0.05, gt=0, description="longest forward-Euler step; longer gaps are sub-stepped")
+    max_gap_s: float = Field(
+        60.0, gt=0, description="a gap between inputs longer than this is an input error (the model is then meaningless)"
+    )
+    in_view_range_m: float = Field(5.0, gt=0, description="landmarks predicted within this range should be seen [m]")
+    field_of_view_deg: float = Field(360.0, gt=0, le=360, description="sensor horizontal field of view [deg]")
+    max_missed_in_view: int = Field(40, ge=1, description="consecutive in-view misses before deletion")
+    min_observations: int = Field(3, ge=1, description="fewer sightings than this by probation_s: deleted")
+    probation_s: float = Field(3.0, ge=0, description="age at which min_observations is checked [s]")
+    max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
+    snapshot_every: int = Field(1, ge=1, description="record a landmark snapshot every N scans")
+
+
+class SensorBasedSlam:
+    """Guerreiro et al. (2013) GAS sensor-based SLAM filter, 2-D and 3-D."""
+
+    Config: ClassVar[type[BaseModel]] = SensorBasedConfig
+    sensor_options: ClassVar[tuple[frozenset[Sensor], ...]] = (
+        frozenset({Sensor.GYRO, Sensor.LANDMARKS}),
+        frozenset({Sensor.IMU, Sensor.LANDMARKS}),
+    )
+    dimensions: ClassVar[frozenset[int]] = frozenset({2, 3})
+
+    def __init__(self, config: SensorBasedConfig, sequence: Sequence) -> None:
+        self.config = config
+        self.name = sequence.name
+        self.dimension = d = sequence.dimension
+        self.rate_dim = r = rate_dimension(d)
+        density = config.gyro_noise_density
+        if density is None:
+            density = sequence.noise.gyro_noise_density or 0.0
+        self.noise = ProcessNoise(
+            velocity_m_s=config.sigma_velocity_m_s,
+            gyro_bias_rad_s=config.sigma_gyro_bias_rad_s,
+            landmark_m=config.sigma_landmark_m,
+            direction=config.sigma_direction,
+            gyro_noise_density=float(density),
+        )
+        start = sequence.initial_state
+        velocity = np.zeros(d)
+        velocity_sigma = config.initial_velocity_sigma_m_s or 2.0
+        if start is not None and start.velocity is not None:
+            rotation = rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
+            velocity = rotation.T @ np.asarray(start.velocity, dtype=float)
+            velocity_sigma = config.initial_velocity_sigma_m_s or start.velocity_sigma_m_s
+        if config.initial_velocity_error_m_s is not None:
+            velocity = velocity + self._vector(config.initial_velocity_error_m_s, d, "initial_velocity_error_m_s")
+        bias = np.zeros(r)
+        if config.initial_gyro_bias_rad_s is not None:
+            bias = self._vector(config.initial_gyro_bias_rad_s, r, "initial_gyro_bias_rad_s")
+        bias_sigma = config.initial_gyro_bias_sigma_rad_s or sequence.noise.gyro_bias_sigma_rad_s or 0.05
+        self.state = FilterState(d, velocity, velocity_sigma**2 * np.eye(d), bias, bias_sigma**2 * np.eye(r))
+        self.manager = LandmarkManager(
+            ManagementPolicy(
+                in_view_range_m=config.in_view_range_m,
+                field_of_view_deg=config.field_of_view_deg,
+                max_missed_in_view=config.max_missed_in_view,
+                min_observations=config.min_observations,
+                probation_s=config.probation_s,
+                max_landmarks=config.max_landmarks,
+            )
+        )
+        self.recorder = EstimateRecorder(d)
+        self.t: float | None = None if start is None else float(start.t)
+        self.rate: np.ndarray | None = None
+        self.scan_count = 0
+        self.skipped: dict[str, int] = {"nan_rate": 0, "nan_points": 0, "scan_without_rate": 0}
+        self.true_to_map: dict[int, int] = {}
+        self._record_vehicle(self.t if self.t is not None else 0.0)
+
+    @staticmethod
+    def _vector(values: list[float], size: int, name: str) -> np.ndarray:
+        vector = np.asarray(values, dtype=float).ravel()
+        if vector.size != size:
+            raise InputError(f"config {name}: expected {size} values, got {vector.size}")
+        return vector
+
+    # ------------------------------------------------------------------ inputs
+    def process(self, measurement: Measurement) -> None:
+        if isinstance(measurement, GyroSample):
+            self._rate_sample(measurement.t, np.asarray(measurement.rate, dtype=float).ravel())
+        elif isinstance(measurement, ImuSample):
+            gyro = np.asarray(measurement.gyro, dtype=float).ravel()
+            self._rate_sample(measurement.t, gyro[2:3] if self.dimension == 2 else gyro)
+        elif isinstance(measurement, LandmarkScan):
+            self._scan(measurement)
+
+    def _rate_sample(self, t: float, rate: np.ndarray) -> None:
+        if rate.size != self.rate_dim:
+            raise InputError(f"{self.name}: gyro sample at t={t:.6f} s has {rate.size} components, expected {self.rate_dim}")
+        self._propagate_to(t)
+        if not np.all(np.isfinite(rate)):
+            # Keep the previous rate (zero-order hold) and say so: a NaN must not reach the state.
+            self.skipped["nan_rate"] += 1
+            if self.skipped["nan_rate"] == 1:
+                self.recorder.event(t, "skipped_input", reason="non-finite gyro rate; previous rate held")
+            return
+        self.rate = rate
+
+    def _propagate_to(self, t: float) -> None:
+        if not np.isfinite(t):
+            raise InputError(f"{self.name}: non-finite time stamp after t={self.t}")
+        if self.t is None:
+            self.t = float(t)
+            return
+        dt = t - self.t
+        if dt < 0:
+            raise InputError(f"{self.name}: time goes backwards at t={t:.6f} s (previous {self.t:.6f} s)")
+        if dt > self.config.max_gap_s:
+            raise InputError(f"{self.name}: gap of {dt:.3f} s before t={t:.6f} s exceeds max_gap_s={self.config.max_gap_s}")
+        if dt == 0.0:
+            return
+        rate = self.rate if self.rate is not None else np.zeros(self.rate_dim)
+        steps = max(1, int(math.ceil(dt / self.config.max_step_s - 1e-9)))
+        state = self.state
+        for _ in range(steps):
+            state.x, state.covariance = propagate(
+                state.x,
+                state.covariance,
+                state.is_position,
+                state.measured,
+                state.visible,
+                rate,
+                dt / steps,
+                self.noise,
+                self.dimension,
+            )
+        self.t = float(t)
+
+    # ------------------------------------------------------------------ scans
+    def _scan(self, scan: LandmarkScan) -> None:
+        d = self.dimension
+        points = np.asarray(scan.points, dtype=float).reshape(-1, d) if np.size(scan.points) else np.zeros((0, d))
+        covs = np.asarray(scan.covariances, dtype=float).reshape(-1, d, d) if np.size(scan.covariances) else np.zeros((0, d, d))
+        if points.shape[0] != covs.shape[0]:
+            raise InputError(f"{self.name}: scan at t={scan.t:.6f} s has {points.shape[0]} points but {covs.shape[0]} covariances")
+        if self.rate is None:
+            self.skipped["scan_without_rate"] += 1
+        self._propagate_to(scan.t)
+        t = float(scan.t)
+        k = points.shape[0]
+        usable = np.all(np.isfinite(points), axis=1) & np.all(np.isfinite(covs.reshape(k, -1)), axis=1)
+        if not usable.all():
+            self.skipped["nan_points"] += int((~usable).sum())
+            self.recorder.event(t, "skipped_input", reason="non-finite scan points dropped", count=int((~usable).sum()))
+        directions = None
+        if self.config.use_directions and scan.directions is not None:
+            directions = np.asarray(scan.directions, dtype=float).reshape(k, -1, d)
+
+        assignment = np.full(k, -1, dtype=int)  # map id per measurement
+        is_new = np.zeros(k, dtype=bool)
+        ids, positions, joint = self.state.landmark_positions()
+        usable_idx = np.flatnonzero(usable)
+        if self.config.association == "ids" and scan.ids is not None:
+            for j in usable_idx:
+                landmark_id = self.true_to_map.get(int(scan.ids[j]))
+                if landmark_id is not None and landmark_id in self.manager.records:
+                    assignment[j] = landmark_id
+            unassigned_new = [j for j in usable_idx if assignment[j] < 0]
+        else:
+            current = self.manager.recently_seen(ids, t, self.config.association_window_s) if len(ids) else np.zeros(0, bool)
+            cur_idx = np.flatnonzero(current)
+            cur_rows = (cur_idx[:, None] * d + np.arange(d)[None, :]).ravel()
+            result = associate_jcbb(
+                points[usable_idx],
+                covs[usable_idx],
+                positions[cur_idx],
+                joint[np.ix_(cur_rows, cur_rows)],
+                gate_probability=self.config.gate_probability,
+                max_nodes=self.config.max_jcbb_nodes,
+            )
+            for local, j in enumerate(usable_idx):
+                if result.assignments[local] >= 0:
+                    assignment[j] = int(ids[cur_idx[result.assignments[local]]])
+            # New landmark only when compatible with no landmark at all (an ambiguous one
+            # is dropped: a duplicate would later steal associations).
+            unassigned_new = [j for local, j in enumerate(usable_idx) if result.assignments[local] < 0 and result.candidate_counts[local] == 0]
+            if result.truncated:
+                self.recorder.event(t, "jcbb_truncated", nodes=result.nodes)
+
+        self.state.visible[:] = False  # I_O is redefined by every scan (section IV-B)
+        self._update(t, points, covs, directions, assignment)
+        for j in self._distinct(points, covs, unassigned_new):
+            landmark_id = self._add_landmark(t, points[j], covs[j], None if directions is None else directions[j])
+            assignment[j] = landmark_id
+            is_new[j] = True
+            if scan.ids is not None and self.config.association == "ids":
+                self.true_to_map[int(scan.ids[j])] = landmark_id
+        for j in range(k):
+            self.recorder.association(t, j, int(assignment[j]), bool(is_new[j]))
+
+        seen_ids = set(int(a) for a in assignment if a >= 0)
+        state = self.state
+        ids, positions, joint = state.landmark_positions()
+        blocks = np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))]) if len(ids) else np.zeros((0, d, d))
+        doomed = self.manager.after_scan(t, ids, np.isin(ids, list(seen_ids)), positions, blocks)
+        if doomed:
+            state.remove_landmarks(doomed)
+            self.manager.removed(doomed)
+            self.true_to_map = {key: value for key, value in self.true_to_map.items() if value not in set(doomed)}
+        self.scan_count += 1
+        self.recorder.landmark_count(t, len(state.landmark_ids()))
+        self.recorder.extra("visible_landmarks", float(len(seen_ids)))
+        self._record_vehicle(t)
+        if self.scan_count % self.config.snapshot_every == 0:
+            self.recorder.landmarks(self.landmark_map(t))
+
+    def _distinct(self, points: np.ndarray, covs: np.ndarray, candidates: list[int]) -> list[int]:
+        """Drop measurements compatible with an earlier one of the same list (duplicate points)."""
+        kept: list[int] = []
+        gate = chi2_gate(self.dimension, self.config.gate_probability)
+        for j in candidates:
+            duplicate = False
+            for i in kept:
+                difference = points[j] - points[i]
+                if difference @ np.linalg.solve(covs[j] + covs[i], difference) < gate:
+                    duplicate = True
+                    break
+            if not duplicate:
+                kept.append(j)
+        return kept
+
+    def _direction_cov(self, direction: np.ndarray) -> np.ndarray:
+        """Covariance of a measured unit direction: sigma^2 across it, a small spread along it."""
+        unit = direction / np.linalg.norm(direction)
+        sigma2 = self.config.direction_sigma_rad**2
+        return sigma2 * (np.eye(self.dimension) - np.outer(unit, unit)) + 0.01 * sigma2 * np.outer(unit, unit)
+
+    def _add_landmark(self, t: float, point: np.ndarray, cov: np.ndarray, directions: np.ndarray | None) -> int:
+        direction_values = direction_covs = None
+        if directions is not None:
+            valid = [u for u in directions if np.all(np.isfinite(u)) and np.linalg.norm(u) > 0]
+            if valid:
+                direction_values = [u / np.linalg.norm(u) for u in valid]
+                direction_covs = [self._direction_cov(u) for u in direction_values]
+        landmark_id = self.state.add_landmark(point, cov, direction_values, direction_covs)
+        self.manager.created(landmark_id, t)
+        return landmark_id
+
+    def _update(self, t: float, points: np.ndarray, covs: np.ndarray, directions: np.ndarray | None, assignment: np.ndarray) -> None:
+        state = self.state
+        d = self.dimension
+        measured_features: list[int] = []
+        values: list[np.ndarray] = []
+        cov_blocks: list[np.ndarray] = []
+        groups: list[np.ndarray] = []
+        position_of = {int(owner): index for index, owner in zip(state.position_features(), state.landmark_ids())}
+        for j in np.flatnonzero(assignment >= 0):
+            landmark_id = int(assignment[j])
+            start = len(values) * d
+            measured_features.append(position_of[landmark_id])
+            values.append(points[j])
+            cov_blocks.append(covs[j])
+            if directions is not None:
+                for feature in state.direction_features(landmark_id):
+                    predicted = state.features[feature]
+                    best, best_cos = None, 0.0
+                    for u in directions[j]:
+                        if not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
+                            continue
+                        cosine = float(u @ predicted) / (np.linalg.norm(u) * max(np.linalg.norm(predicted), 1e-12))
+                        if abs(cosine) > abs(best_cos):
+                            best, best_cos = u, cosine
+                    if best is not None and abs(best_cos) > math.cos(math.radians(30.0)):
+                        unit = np.sign(best_cos) * best / np.linalg.norm(best)  # a line has no sign
+                        measured_features.append(int(feature))
+                        values.append(unit)
+                        cov_blocks.append(self._direction_cov(unit))
+            groups.append(np.arange(start, len(values) * d))
+        if not measured_features:
+            return
+        features = np.array(measured_features)
+        indices = state.state_indices(features)
+        theta = np.zeros((len(values) * d, len(values) * d))
+        for index, block in enumerate(cov_blocks):
+            theta[index * d : index * d + d, index * d : index * d + d] = block
+        state.x, state.covariance, result = kalman_update(
+            state.x, state.covariance, indices, np.concatenate(values), theta, groups
+        )
+        state.measured[features] = np.stack(values)
+        state.visible[features] = True
+        for value, dof in zip(result.nis, result.dof):
+            self.recorder.nis(t, float(value), int(dof))
+
+    # ------------------------------------------------------------------ output
+    def landmark_map(self, t: float) -> LandmarkMap:
+        """The body-frame map now: ids, positions (L, d), marginal covariances (L, d, d)."""
+        d = self.dimension
+        ids, positions, joint = self.state.landmark_positions()
+        covs = np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))]) if len(ids) else np.zeros((0, d, d))
+        return LandmarkMap(ids=ids.copy(), positions=positions.copy(), covariances=covs, frame=Frame.BODY, t=float(t))
+
+    def _record_vehicle(self, t: float) -> None:
+        state = self.state
+        d, nv = self.dimension, state.vehicle_dim
+        self.recorder.block(BlockName.VELOCITY, t, state.velocity.copy(), state.covariance[:d, :d].copy(), Frame.BODY)
+        self.recorder.block(BlockName.GYRO_BIAS, t, state.bias.copy(), state.covariance[d:nv, d:nv].copy(), Frame.BODY)
+
+    def estimate(self) -> Estimate:
+        notes = [
+            "robocentric: velocity and landmarks are body-frame; no world pose in the causal history",
+            f"landmarks deleted: {self.manager.deleted}",
+        ]
+        if any(self.skipped.values()):
+            notes.append(f"skipped inputs: {self.skipped}")
+        t = self.t if self.t is not None else 0.0
+        return self.recorder.build(landmarks=self.landmark_map(t), notes=tuple(notes))

@@ -1,0 +1,126 @@
+"""The sensor-based filter's state vector, covariance and feature bookkeeping.
+
+Layout ``x = [v (d), b (r), features]`` (see ``dynamics``). A landmark owns one position
+feature and optionally direction features, stored contiguously: position first. Map ids
+are the filter's own (assigned in creation order, never reused).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from filters.sensor_based.dynamics import rate_dimension
+
+
+class FilterState:
+    """Mean, covariance and per-feature metadata.
+
+    Attributes:
+        dimension: d. rate_dim: r. vehicle_dim: d + r.
+        x: (n,). covariance: (n, n).
+        owner: (F,) map id of the landmark each feature belongs to.
+        is_position: (F,) bool.
+        measured: (F, d) last measured value of each feature (the ``y`` of ``A(t, y)``).
+        visible: (F,) bool, measured in the latest scan (the set I_O).
+    """
+
+    def __init__(self, dimension: int, velocity: np.ndarray, velocity_cov: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray) -> None:
+        self.dimension = dimension
+        self.rate_dim = rate_dimension(dimension)
+        self.vehicle_dim = dimension + self.rate_dim
+        self.x = np.concatenate([np.asarray(velocity, float).ravel(), np.asarray(bias, float).ravel()])
+        self.covariance = np.zeros((self.vehicle_dim, self.vehicle_dim))
+        self.covariance[:dimension, :dimension] = velocity_cov
+        self.covariance[dimension:, dimension:] = bias_cov
+        self.owner = np.zeros(0, dtype=int)
+        self.is_position = np.zeros(0, dtype=bool)
+        self.measured = np.zeros((0, dimension))
+        self.visible = np.zeros(0, dtype=bool)
+        self._next_id = 0
+
+    # ------------------------------------------------------------------ views
+    @property
+    def feature_count(self) -> int:
+        return int(self.owner.size)
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return self.x[: self.dimension]
+
+    @property
+    def bias(self) -> np.ndarray:
+        return self.x[self.dimension : self.vehicle_dim]
+
+    @property
+    def features(self) -> np.ndarray:
+        """(F, d) view of the feature values."""
+        return self.x[self.vehicle_dim :].reshape(-1, self.dimension)
+
+    def landmark_ids(self) -> np.ndarray:
+        """Map ids of the landmarks in state order, (L,)."""
+        return self.owner[self.is_position]
+
+    def position_features(self) -> np.ndarray:
+        """Feature index of each landmark's position, (L,) (same order as ``landmark_ids``)."""
+        return np.flatnonzero(self.is_position)
+
+    def state_indices(self, feature_indices: np.ndarray) -> np.ndarray:
+        """State-vector indices of features, (len * d,) in feature order."""
+        feature_indices = np.asarray(feature_indices, dtype=int)
+        return (self.vehicle_dim + feature_indices[:, None] * self.dimension + np.arange(self.dimension)[None, :]).ravel()
+
+    def direction_features(self, landmark_id: int) -> np.ndarray:
+        return np.flatnonzero((self.owner == landmark_id) & ~self.is_position)
+
+    def landmark_positions(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(ids (L,), positions (L, d), joint covariance of all positions (L*d, L*d))."""
+        features = self.position_features()
+        indices = self.state_indices(features)
+        return self.owner[features], self.features[features], self.covariance[np.ix_(indices, indices)]
+
+    # ------------------------------------------------------------------ edits
+    def add_landmark(self, position: np.ndarray, position_cov: np.ndarray, directions: np.ndarray | None = None, direction_covs: np.ndarray | None = None) -> int:
+        """Append a landmark initialised from a body-frame measurement; returns its map id.
+
+        In the robocentric frame the measurement *is* the landmark, so the new block has the
+        measurement covariance and no correlation with the rest of the state.
+        """
+        d = self.dimension
+        values = [np.asarray(position, float).ravel()]
+        covs = [np.asarray(position_cov, float)]
+        kinds = [True]
+        if directions is not None:
+            for direction, cov in zip(directions, direction_covs):
+                values.append(np.asarray(direction, float).ravel())
+                covs.append(np.asarray(cov, float))
+                kinds.append(False)
+        landmark_id = self._next_id
+        self._next_id += 1
+        n_old = self.x.size
+        n_new = n_old + d * len(values)
+        grown = np.zeros((n_new, n_new))
+        grown[:n_old, :n_old] = self.covariance
+        for index, cov in enumerate(covs):
+            start = n_old + index * d
+            grown[start : start + d, start : start + d] = cov
+        self.covariance = grown
+        self.x = np.concatenate([self.x, *values])
+        self.owner = np.concatenate([self.owner, np.full(len(values), landmark_id)])
+        self.is_position = np.concatenate([self.is_position, np.array(kinds)])
+        self.measured = np.vstack([self.measured, np.stack(values)])
+        self.visible = np.concatenate([self.visible, np.ones(len(values), dtype=bool)])
+        return landmark_id
+
+    def remove_landmarks(self, landmark_ids: list[int] | np.ndarray) -> None:
+        """Drop every feature of the given landmarks (marginalisation: delete rows/columns)."""
+        drop = np.isin(self.owner, np.asarray(landmark_ids, dtype=int))
+        if not drop.any():
+            return
+        keep_features = np.flatnonzero(~drop)
+        keep = np.concatenate([np.arange(self.vehicle_dim), self.state_indices(keep_features)])
+        self.x = self.x[keep]
+        self.covariance = self.covariance[np.ix_(keep, keep)]
+        self.owner = self.owner[keep_features]
+        self.is_position = self.is_position[keep_features]
+        self.measured = self.measured[keep_features]
+        self.visible = self.visible[keep_features]
