@@ -50,6 +50,7 @@ class ScanFolderOptions(BaseModel):
     max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
     odometry: bool = Field(True, description="KISS-ICP odometry")
     corners: bool = Field(True, description="corner landmarks")
+    warmup_frames: int = Field(1, ge=0, description="withhold the corners of this many first frames (not yet deskewable)")
     kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)")
     corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings, as corner.KEY=VALUE (listed below)")
 
@@ -214,7 +215,7 @@ def scans_sequence(argument: str | None, settings: ScanFolderOptions) -> tuple[S
         raise InputError(f"{folder}: no .bin, .pcd or .ply scans")
     times = frame_times(folder, files, settings)
     order_problem = np.flatnonzero(np.diff(times) <= 0)
-    front_end = LidarFrontEnd(FrontEndSettings(odometry=settings.odometry, corners=settings.corners, kiss=settings.kiss, corner=settings.corner))
+    front_end = LidarFrontEnd(FrontEndSettings(odometry=settings.odometry, corners=settings.corners, warmup_frames=settings.warmup_frames, kiss=settings.kiss, corner=settings.corner))
     source = LidarSource(front_end)
 
     def clouds():

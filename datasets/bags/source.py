@@ -57,6 +57,7 @@ class BagOptions(BaseModel):
     max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
     odometry: bool = Field(True, description="KISS-ICP odometry")
     corners: bool = Field(True, description="corner landmarks")
+    warmup_frames: int = Field(1, ge=0, description="withhold the corners of this many first frames (not yet deskewable)")
     kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)")
     corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings, as corner.KEY=VALUE (listed below)")
 
@@ -154,7 +155,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
     ground_truth = _ground_truth(*gt, truth)
     read_settings = ReadSettings(time_unit=settings.point_time_unit, gps_origin=origin, gps_sigma_m=settings.gps_sigma_m, reorder_window_s=settings.reorder_window_s)
-    front_end = LidarFrontEnd(FrontEndSettings(odometry=settings.odometry, corners=settings.corners, kiss=settings.kiss, corner=settings.corner))
+    front_end = LidarFrontEnd(FrontEndSettings(odometry=settings.odometry, corners=settings.corners, warmup_frames=settings.warmup_frames, kiss=settings.kiss, corner=settings.corner))
     source = LidarSource(front_end)
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
 

@@ -11,7 +11,7 @@ of the frames and a second pass over a sequence (another estimator) costs nothin
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -30,6 +30,7 @@ class FrontEndSettings(BaseModel):
 
     odometry: bool = Field(True, description="run KISS-ICP")
     corners: bool = Field(True, description="extract corner landmarks")
+    warmup_frames: int = Field(1, ge=0, description="withhold the corners of this many first frames of clouds with per-point times (no motion estimate to deskew them with yet)")
     kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings")
     corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings")
 
@@ -82,6 +83,8 @@ class LidarFrontEnd:
             pose, odometry, t = registered.pose, registered.odometry, registered.t
         icp_done = time.perf_counter()
         corners = self._corners(cloud, odometry) if self.settings.corners else None
+        if corners is not None and cloud.point_times is not None and len(self.frames) < self.settings.warmup_frames:
+            corners = replace(corners, points=corners.points[:0], covariances=corners.covariances[:0], directions=None if corners.directions is None else corners.directions[:0])
         result = FrontEndFrame(cloud.t, t, len(cloud.points), pose, odometry, corners, icp_done - started, time.perf_counter() - icp_done)
         self.frames.append(result)
         return result
