@@ -88,7 +88,7 @@ def test_covariance_matches_monte_carlo():
     covariance) against the scatter of corners from 300 noisy scans of the same room.
     Bearing noise is kept small here: it biases the total-least-squares lines (see
     ``extract_corners``), which a covariance cannot describe."""
-    config = CornerConfig(max_range_m=20.0, range_sigma_m=0.03, bearing_sigma_rad=0.0005, dimension=2, split_threshold_m=0.15, merge_rms_m=0.06)
+    config = CornerConfig(max_range_m=20.0, range_sigma_m=0.03, bearing_sigma_rad=0.0005, dimension=2, split_threshold_m=0.15, merge_rms_m=0.06, model_sigma_m=0.0)
     world = _room_world()
     rng = np.random.default_rng(4)
     target = np.array([6.0, -3.0])
@@ -113,7 +113,7 @@ def test_covariance_matches_monte_carlo():
 
 def test_bearing_noise_bias_is_small_and_spread_still_predicted():
     """With 2 mrad bearing noise the spread is still predicted; the line bias stays a few mm."""
-    config = CornerConfig(max_range_m=20.0, range_sigma_m=0.03, bearing_sigma_rad=0.002, dimension=2, split_threshold_m=0.15, merge_rms_m=0.06)
+    config = CornerConfig(max_range_m=20.0, range_sigma_m=0.03, bearing_sigma_rad=0.002, dimension=2, split_threshold_m=0.15, merge_rms_m=0.06, model_sigma_m=0.0)
     rng = np.random.default_rng(5)
     target = np.array([6.0, -3.0])
     samples, predicted = [], []

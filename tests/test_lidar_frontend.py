@@ -41,6 +41,8 @@ def test_corner_precision_recall_and_ate(runs, name):
     assert metrics["observable"] >= 100
     assert metrics["kiss_icp_ate_rmse_m"] is not None and metrics["kiss_icp_ate_rmse_m"] < 0.5
     assert metrics["skipped"] == [] and metrics["nonfinite_points_dropped"] > 0
+    # the covariances (with the model floor) cover the errors of the correct detections
+    assert metrics["corner_error_rms_m"] < 0.04 and 0.3 < metrics["corner_nees_mean"] < 3.0
     table = (runs[name] / "table.md").read_text().splitlines()
     assert table[0].startswith("| estimator | status | ATE RMSE [m]") and len(table) == 4
     assert "| dead-reckoning | ok |" in table[3]

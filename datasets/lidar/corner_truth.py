@@ -205,3 +205,38 @@ def true_corner_ids(frames: list[tuple[float, np.ndarray]], truth: CornerTruth, 
         ids = np.where(gaps[np.arange(len(detections)), nearest] <= tolerance_m, truth.ids[nearest], -1)
         result.append((float(t), ids.astype(int)))
     return tuple(result)
+
+
+def corner_error_statistics(frames: list[tuple[float, np.ndarray, np.ndarray]], truth: CornerTruth, trajectory: Trajectory, tolerance_m: float = 0.1) -> dict[str, float | int | None]:
+    """Horizontal errors of the correct detections (within ``tolerance_m`` of a true corner)
+    against their covariances, over frames of ``(t, points (k, d), covariances (k, d, d))``.
+
+    Returns:
+        ``corner_error_rms_m``, ``corner_predicted_rms_m`` (sqrt of the mean trace of the
+        horizontal covariances), ``corner_nees_mean`` and ``corner_nees_median`` (2 dof),
+        ``corner_errors`` (count); None values when there is no correct detection.
+    """
+    errors, covariances = [], []
+    for t, points, covs in frames:
+        points = np.asarray(points)
+        if len(points) == 0 or not trajectory.t[0] <= t <= trajectory.t[-1]:
+            continue
+        positions, quats = interpolate_poses(trajectory, np.array([t]))
+        truth_body = (truth.positions - positions[0]) @ matrix_from_quat_wxyz(quats[0])
+        offsets = points[:, None, :2] - truth_body[None, :, :2]
+        nearest = np.argmin(np.linalg.norm(offsets, axis=2), axis=1)
+        error = offsets[np.arange(len(points)), nearest]
+        good = np.linalg.norm(error, axis=1) <= tolerance_m
+        errors.append(error[good])
+        covariances.append(np.asarray(covs)[good][:, :2, :2])
+    if not errors or sum(len(e) for e in errors) == 0:
+        return {"corner_error_rms_m": None, "corner_predicted_rms_m": None, "corner_nees_mean": None, "corner_nees_median": None, "corner_errors": 0}
+    error, covariance = np.concatenate(errors), np.concatenate(covariances)
+    nees = np.einsum("ni,nij,nj->n", error, np.linalg.inv(covariance), error)
+    return {
+        "corner_error_rms_m": float(np.sqrt(np.mean(np.sum(error**2, axis=1)))),
+        "corner_predicted_rms_m": float(np.sqrt(np.mean(np.trace(covariance, axis1=1, axis2=2)))),
+        "corner_nees_mean": float(np.mean(nees)),
+        "corner_nees_median": float(np.median(nees)),
+        "corner_errors": int(len(error)),
+    }

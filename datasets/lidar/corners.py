@@ -26,7 +26,10 @@ and segment merges, never over points):
    ``min_corner_angle_deg`` (and at most 180 minus it) and whose line intersection lies
    within ``max_corner_gap_m`` of both segments' facing ends. The corner is the
    intersection; its covariance is propagated from the range/bearing noise of the points
-   (``corner_covariance``). 3-D corners take the slab height.
+   (``corner_covariance``), plus an isotropic ``model_sigma_m`` floor for errors the point
+   model leaves out (on the synthetic corridor bag, detections scatter 1.8 cm RMS about the
+   true corners where the point model alone predicts 1.2 cm). 3-D corners take the slab
+   height.
 """
 
 from __future__ import annotations
@@ -64,6 +67,7 @@ class CornerConfig(BaseModel):
     directions: bool = Field(False, description="also output the two unit line directions of every corner")
     dimension: int = Field(3, ge=2, le=3, description="2: planar corners; 3: corners at the slab height")
     slab_sigma_m: float | None = Field(None, description="std of a 3-D corner's z [m] (default: half thickness / sqrt(3))")
+    model_sigma_m: float = Field(0.015, ge=0, description="isotropic horizontal std added to every corner for what the point noise model leaves out (deskew and odometry error, beam width) [m]")
 
 
 @dataclass(frozen=True)
@@ -338,7 +342,7 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
     s2 = np.sum((corner - centroid[right]) * direction[right], axis=1)
     var_v1 = var_a[left] + 2.0 * s1 * cov_ab[left] + s1**2 * var_b[left]
     var_v2 = var_a[right] + 2.0 * s2 * cov_ab[right] + s2**2 * var_b[right]
-    covariance_2d = corner_covariance(normal[left], normal[right], var_v1, var_v2)
+    covariance_2d = corner_covariance(normal[left], normal[right], var_v1, var_v2) + config.model_sigma_m**2 * np.eye(2)
 
     directions = None
     if config.directions:

@@ -85,7 +85,7 @@ def corners_csv(frames) -> str:
 
 def front_end_metrics(sequence, source, seconds: float) -> dict:
     """The front end's figures (see the module docstring)."""
-    from datasets.lidar.corner_truth import read_corner_truth, score_corners
+    from datasets.lidar.corner_truth import corner_error_statistics, read_corner_truth, score_corners
 
     front_end = source.front_end
     frames = front_end.frames
@@ -118,8 +118,9 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
     sidecar = sequence.metadata.get("corner_sidecar")
     if sidecar and truth is not None and front_end.settings.corners:
         config = front_end.settings.corner
-        scores = score_corners([(f.t, f.corners.points) for f in frames], read_corner_truth(Path(sidecar)), truth, config.min_range_m, config.max_range_m, config.azimuth_resolution_deg)
-        metrics.update(scores)
+        corner_truth = read_corner_truth(Path(sidecar))
+        metrics.update(score_corners([(f.t, f.corners.points) for f in frames], corner_truth, truth, config.min_range_m, config.max_range_m, config.azimuth_resolution_deg))
+        metrics.update(corner_error_statistics([(f.t, f.corners.points, f.corners.covariances) for f in frames], corner_truth, truth))
     return metrics
 
 
