@@ -88,3 +88,14 @@ def test_se3_log_and_deskew_against_matrix_exponential():
     assert np.allclose(deskew_to_end(points, s, delta), expected, atol=1e-10)
     assert np.allclose(deskew_to_end(points, np.ones(20), delta), points)
     assert np.allclose(so3_exp(xi[3:]), delta[:3, :3])
+
+
+def test_estimator_overrides():
+    from datasets.errors import InputError
+    from workbench.commands.bag import estimator_overrides
+
+    assert estimator_overrides(["aghili.anchor_source=first-observation"], ["aghili", "ekf-slam"]) == {"aghili": {"anchor_source": "first-observation"}, "ekf-slam": {}}
+    with pytest.raises(InputError, match="not among the estimators run"):
+        estimator_overrides(["smoother-batch.x=1"], ["aghili"])
+    with pytest.raises(InputError, match="ESTIMATOR.key=value"):
+        estimator_overrides(["x=1"], ["aghili"])

@@ -185,7 +185,20 @@ def choose_estimators(requested: str | None, sequence) -> list[str]:
     return [entry.name for entry in ESTIMATORS if is_compatible(entry.load(), sequence)]
 
 
-def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str | None, ground_truth_topic: str | None, estimators: str | None, data: list[str], plots: bool, quiet: bool = False) -> list[dict]:
+def estimator_overrides(assignments: list[str], names: list[str]) -> dict[str, dict[str, str]]:
+    """``["aghili.anchor_source=first-observation"]`` -> ``{"aghili": {"anchor_source": ...}}``."""
+    overrides: dict[str, dict[str, str]] = {name: {} for name in names}
+    for key, value in parse_assignments(assignments, "--set").items():
+        name, dot, option = key.partition(".")
+        if not dot or not option:
+            raise InputError(f"--set expects ESTIMATOR.key=value, got '{key}={value}'")
+        if name not in overrides:
+            raise InputError(f"--set {key}: '{name}' is not among the estimators run ({', '.join(names)})")
+        overrides[name][option] = value
+    return overrides
+
+
+def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str | None, ground_truth_topic: str | None, estimators: str | None, data: list[str], plots: bool, quiet: bool = False, settings_overrides: list[str] | None = None) -> list[dict]:
     """The whole command (module docstring); returns the table rows."""
     from datasets.bags.reader import open_bag
     from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
@@ -204,6 +217,7 @@ def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str |
     if settings.max_frames:
         lidar_messages = min(lidar_messages, settings.max_frames)
     names = choose_estimators(estimators, sequence)
+    overrides = estimator_overrides(settings_overrides or [], names)
     disable = quiet or not sys.stderr.isatty()
 
     seconds = run_front_end(sequence, source, lidar_messages, disable)
@@ -231,7 +245,7 @@ def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str |
             with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("t={task.completed:.1f} s"), TimeElapsedColumn(), transient=True, disable=disable) as progress:
                 start = sequence.initial_state.t if sequence.initial_state else 0.0
                 task = progress.add_task(name, total=None)
-                result = execute(RunRequest(estimator=name, dataset=sequence.name, data_options=data_options), sequence=sequence, on_step=lambda t: progress.update(task, completed=t - start))
+                result = execute(RunRequest(estimator=name, dataset=sequence.name, overrides=tuple(overrides[name].items()), data_options=data_options), sequence=sequence, on_step=lambda t: progress.update(task, completed=t - start))
             metrics = write_run_folder(result, out / name, plots=plots)
             row.update({key: metrics.get(key) for key, _ in TABLE_COLUMNS})
         except InputError as error:
@@ -256,9 +270,10 @@ def register(app: typer.Typer) -> None:
         gt_topic: Annotated[Optional[str], typer.Option("--gt-topic", help="Odometry/PoseStamped ground-truth topic")] = None,
         estimators: Annotated[Optional[str], typer.Option("--estimators", help="comma-separated estimator names (default: all the bag allows)")] = None,
         data: Annotated[Optional[list[str]], typer.Option("--data", help="bag option key=value, e.g. max_frames=50, kiss.voxel_size_m=0.5 (repeatable)")] = None,
+        set_: Annotated[Optional[list[str]], typer.Option("--set", help="estimator option ESTIMATOR.key=value, e.g. aghili.anchor_source=first-observation (repeatable)")] = None,
         plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write figures in run folders")] = True,
     ) -> None:
         """Lidar bag end to end: KISS-ICP + corners, every estimator, a comparison table."""
-        rows = bag_command(path, out, lidar_topic, imu_topic, gt_topic, estimators, data or [], plots)
+        rows = bag_command(path, out, lidar_topic, imu_topic, gt_topic, estimators, data or [], plots, settings_overrides=set_ or [])
         typer.echo((out / "table.md").read_text(), nl=False)
         typer.echo(f"frontend: {out / 'frontend'}; {len(rows) - 1} estimator run(s) in {out}")
