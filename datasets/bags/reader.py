@@ -266,7 +266,7 @@ def read_stream(path: Path, topics: list[str], settings: ReadSettings, report: R
         for topic, msgtype, stamp, message in iter_messages(reader, path, topics):
             report.messages[topic] += 1
             if stamp <= last_on_topic.get(topic, -np.inf):
-                report.skip(topic, "stamp went backwards", stamp, f"previous {last_on_topic[topic]:.9f}")
+                report.skip(topic, "stamp went backwards (or repeated)", stamp, f"previous {last_on_topic[topic]:.9f}")
                 continue
             if stamp < emitted:
                 report.skip(topic, "stamp older than the reorder window", stamp, f"already at {emitted:.9f}")
