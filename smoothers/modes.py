@@ -69,7 +69,7 @@ class SmootherIsam2(KeyframeSmoother):
         self.causal_covariances = config.causal_covariances
 
     def _make_backend(self) -> Isam2Backend:
-        return Isam2Backend(self.config.relinearize_threshold, self.config.relinearize_skip, self.config.extra_iterations)
+        return Isam2Backend(self.config.relinearize_threshold, self.config.relinearize_skip, self.config.extra_iterations, self.dimension)
 
     def estimate(self) -> Estimate:
         self._flush()
@@ -88,7 +88,7 @@ class SmootherBatch(KeyframeSmoother):
     mode: ClassVar[str] = "batch"
 
     def _make_backend(self) -> Isam2Backend:
-        return Isam2Backend(self.config.relinearize_threshold, self.config.relinearize_skip, self.config.extra_iterations)
+        return Isam2Backend(self.config.relinearize_threshold, self.config.relinearize_skip, self.config.extra_iterations, self.dimension)
 
     def estimate(self) -> Estimate:
         self._flush()
@@ -147,7 +147,7 @@ class SmootherFixedLag(KeyframeSmoother):
         self.smoothed_recorder_rows: dict[int, EstimateRecorder] = {}
 
     def _make_backend(self) -> FixedLagBackend:
-        return FixedLagBackend(self.config.lag_s, self.config.relinearize_threshold, self.config.relinearize_skip)
+        return FixedLagBackend(self.config.lag_s, self.config.relinearize_threshold, self.config.relinearize_skip, self.dimension)
 
     def _before_update(self, t_new: float) -> None:
         leaving = set(self.backend.leaving(t_new))
