@@ -130,3 +130,17 @@ def test_topic_discovery_lists_candidates():
         discover_topics(Path("x.bag"), types, lidar="/imu")
     truth = {**types, "/odom": "nav_msgs/msg/Odometry", "/ground_truth": "geometry_msgs/msg/PoseStamped"}
     assert discover_topics(Path("x.bag"), truth, lidar="/a/points").ground_truth == "/ground_truth"
+
+
+def test_lidar_to_body_extrinsic(bags):
+    from datasets.bags.source import load_bag
+
+    options = {"odometry": "false", "corners": "false"}
+    plain = next(m for m in load_bag(str(bags["ros1"]), 0, options).measurements() if isinstance(m, PointCloud))
+    # lidar 0.2 m ahead of and 0.1 m above the IMU, yawed by 90 degrees
+    half = float(np.sqrt(0.5))
+    moved = next(m for m in load_bag(str(bags["ros1"]), 0, {**options, "lidar_to_body": "[0.2, 0, 0.1, %r, 0, 0, %r]" % (half, half)}).measurements() if isinstance(m, PointCloud))
+    expected = np.column_stack([-plain.points[:, 1] + 0.2, plain.points[:, 0], plain.points[:, 2] + 0.1])
+    assert np.allclose(moved.points, expected, atol=1e-9)
+    with pytest.raises(InputError, match="zero length"):
+        load_bag(str(bags["ros1"]), 0, {"lidar_to_body": "[0, 0, 0, 0, 0, 0, 0]"})

@@ -190,9 +190,11 @@ def pose_of(message, msgtype: str) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class ReadSettings:
-    """How to convert: point time unit, GPS origin and default GPS sigma, reorder window."""
+    """How to convert: point time unit, GPS origin and default GPS sigma, reorder window, and
+    the lidar-to-body extrinsic (``p_body = R p_lidar + t``), if any."""
 
     time_unit: str = "auto"
+    lidar_to_body: np.ndarray | None = None  # (4, 4) extrinsic applied to every cloud
     gps_origin: tuple[float, float, float] | None = None
     gps_sigma_m: float = 1.0
     reorder_window_s: float = 1.0
@@ -208,7 +210,10 @@ def convert(path: Path, topic: str, msgtype: str, stamp: float, message, setting
         if cloud.points.shape[0] == 0:
             report.skip(topic, "empty cloud (no finite points)", stamp)
             return None
-        return PointCloud(t=stamp, points=cloud.points, point_times=cloud.point_times)
+        points = cloud.points
+        if settings.lidar_to_body is not None:
+            points = points @ settings.lidar_to_body[:3, :3].T + settings.lidar_to_body[:3, 3]
+        return PointCloud(t=stamp, points=points, point_times=cloud.point_times)
     if msgtype == IMU:
         gyro, accel = _vector(message.angular_velocity), _vector(message.linear_acceleration)
         if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(accel))):

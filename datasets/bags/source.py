@@ -6,8 +6,9 @@ relative poses) and LANDMARKS (corners) from the front end. Ground truth: the po
 Odometry/PoseStamped topic, and the true corners when a sidecar ``NAME.corners.json``
 (written by ``workbench simulate lidar-corridor``) lies next to the bag.
 
-Frames: the lidar frame is taken as the body (and IMU) frame; a bag whose sensors are
-mounted apart needs its extrinsics applied before (not handled here).
+Frames: the body frame is the IMU's; clouds are moved into it with the ``lidar_to_body``
+option (identity by default: lidar = body). KISS-ICP then tracks the body frame and corners
+are body-frame positions, as the estimators expect.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, with_front_
 from datasets.lidar.kiss_icp_odometry import KissIcpSettings
 from datasets.measurements import Sensor
 from datasets.options import build_model, yaml_value
+from datasets.rotations import matrix_from_quat_wxyz
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import Frame, GroundTruth, LandmarkMap, StateHistory
 from datasets.trajectory import Trajectory
@@ -51,6 +53,9 @@ class BagOptions(BaseModel):
     accel_bias_walk: float = Field(3e-4, gt=0, description="accelerometer bias random walk [m/s^3/sqrt(Hz)] (bags do not say)")
     gyro_bias_sigma_rad_s: float = Field(0.01, gt=0, description="std of the initial gyro bias [rad/s]")
     accel_bias_sigma_m_s2: float = Field(0.1, gt=0, description="std of the initial accelerometer bias [m/s^2]")
+    lidar_to_body: tuple[float, float, float, float, float, float, float] | None = Field(
+        None, description="lidar pose in the body (IMU) frame: [x, y, z, qw, qx, qy, qz]; clouds are moved into the body frame (also levels a tilted lidar for the corner slab)"
+    )
     point_time_unit: str = Field("auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times")
     reorder_window_s: float = Field(1.0, ge=0, description="how far stamps may lag bag order and still be reordered [s]")
     point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
@@ -83,6 +88,20 @@ class LidarSource:
     def __init__(self, front_end: LidarFrontEnd) -> None:
         self.front_end = front_end
         self.report = ReadReport()
+
+
+def extrinsic_matrix(pose: tuple[float, ...] | None) -> np.ndarray | None:
+    """[x, y, z, qw, qx, qy, qz] -> (4, 4), or None; ``InputError`` for a zero quaternion."""
+    if pose is None:
+        return None
+    quat = np.asarray(pose[3:], dtype=float)
+    norm = np.linalg.norm(quat)
+    if not norm > 1e-9:
+        raise InputError(f"lidar_to_body: quaternion {list(pose[3:])} has zero length")
+    matrix = np.eye(4)
+    matrix[:3, :3] = matrix_from_quat_wxyz(quat / norm)
+    matrix[:3, 3] = pose[:3]
+    return matrix
 
 
 def _ground_truth(times: np.ndarray, positions: np.ndarray, quats: np.ndarray, truth: CornerTruth | None) -> GroundTruth | None:
@@ -154,7 +173,10 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
     ground_truth = _ground_truth(*gt, truth)
-    read_settings = ReadSettings(time_unit=settings.point_time_unit, gps_origin=origin, gps_sigma_m=settings.gps_sigma_m, reorder_window_s=settings.reorder_window_s)
+    read_settings = ReadSettings(
+        time_unit=settings.point_time_unit, gps_origin=origin, gps_sigma_m=settings.gps_sigma_m,
+        reorder_window_s=settings.reorder_window_s, lidar_to_body=extrinsic_matrix(settings.lidar_to_body),
+    )
     front_end = LidarFrontEnd(FrontEndSettings(odometry=settings.odometry, corners=settings.corners, warmup_frames=settings.warmup_frames, kiss=settings.kiss, corner=settings.corner))
     source = LidarSource(front_end)
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
