@@ -289,3 +289,10 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
     temp.rename(out)
     write_sidecar(out, world, model, settings)
     return out
+
+
+def describe() -> list[str]:
+    """Option lines of ``workbench simulate lidar-corridor`` (``--data key=value``)."""
+    from datasets.options import describe_model
+
+    return describe_model(LidarBagOptions)
