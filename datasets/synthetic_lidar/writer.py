@@ -47,7 +47,7 @@ class LidarBagOptions(BaseModel):
 
     duration_s: float = Field(8.0, gt=0, description="recording length [s]")
     start_s: float = Field(0.0, ge=0, description="where along the loop to start, as time at speed [s]")
-    speed_m_s: float = Field(1.5, gt=0, description="vehicle speed [m/s] (the loop is 76.6 m)")
+    speed_m_s: float = Field(1.5, gt=0, description="vehicle speed [m/s] (the loop is 76.4 m)")
     beams: int = Field(16, description="lidar beams: 16 or 32")
     columns: int = Field(1024, ge=16, description="azimuth columns per revolution")
     lidar_rate_hz: float = Field(10.0, gt=0, description="lidar revolutions per second")
