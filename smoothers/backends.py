@@ -24,7 +24,7 @@ from datasets.errors import InputError
 def _explain(error: RuntimeError, t: float, context: str) -> InputError:
     text = str(error).strip().splitlines()
     first = text[0] if text else type(error).__name__
-    if "Indeterminant" in str(error) or "indeterminant" in str(error):
+    if "ndeterminant" in str(error) or "ndeterminate" in str(error):
         return InputError(
             f"{context} at t={t:.6f} s: the system is indeterminate (some state is not constrained: "
             f"no prior, anchors, GPS or enough landmarks reach it) -- GTSAM: {first}"
@@ -84,7 +84,10 @@ class Isam2Backend:
         return self.isam.calculateEstimate()
 
     def marginal_covariance(self, key: int) -> np.ndarray:
-        return self.isam.marginalCovariance(key)
+        try:
+            return self.isam.marginalCovariance(key)
+        except RuntimeError as error:
+            raise _explain(error, float("nan"), f"iSAM2 marginal covariance of {gtsam.DefaultKeyFormatter(key)}") from None
 
     def leaving(self, t_new: float) -> list[int]:
         """Keys about to be marginalised by an update at ``t_new``: none for iSAM2."""
@@ -124,7 +127,10 @@ class FixedLagBackend:
         return self.smoother.calculateEstimate()
 
     def marginal_covariance(self, key: int) -> np.ndarray:
-        return self.smoother.marginalCovariance(key)
+        try:
+            return self.smoother.marginalCovariance(key)
+        except RuntimeError as error:
+            raise _explain(error, float("nan"), f"fixed-lag marginal covariance of {gtsam.DefaultKeyFormatter(key)}") from None
 
     def leaving(self, t_new: float) -> list[int]:
         """Keys an update whose latest time is ``t_new`` will marginalise (time < t_new - lag)."""
