@@ -135,10 +135,10 @@ def test_average_runs_flags_an_overconfident_estimator() -> None:
 def test_markdown_says_na_with_the_reason() -> None:
     empty = {column.key: None for column in COLUMNS}
     rows = [
-        Row("sim:x", "a", "ok", 2, 2, {**empty, "ate_rmse_m": Stat(1.5, 0.25, 2)}, {}),
+        Row("sim:x", "a", "ok", 2, 2, {**empty, "ate_rmse_m": Stat(1.5, 0.25, 2), "nis_mean": Stat(2.0, 0.5, 2)}, {}),
         Row("sim:x", "b", "n/a", 0, 0, empty, {}),
     ]
     text = markdown_table(rows, ["n/a sim:x / b: needs imu"])
-    assert "| sim:x | a | 2 | 1.5 ± 0.25 |" in text
-    assert "| sim:x | b | - | n/a |" in text
+    assert "| sim:x | a | 2 | 1.5 ± 0.25 | 2 ± 0.5 |" in text
+    assert "| sim:x | b | - | n/a |  |" in text
     assert "- n/a sim:x / b: needs imu" in text

@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 
 from datasets.trajectory_io import read_tum  # noqa: E402
 from workbench.monte_carlo import AveragedSeries, ErrorSeries  # noqa: E402
-from workbench.plots import nis_on_axes, save_figure, trajectory_on_axes  # noqa: E402
+from workbench.plots import nis_on_axes, trajectory_on_axes  # noqa: E402
 from workbench.registry import estimator_entry  # noqa: E402
 from workbench.results import PairResults, RunSeries, collect  # noqa: E402
 from workbench.suites import DatasetSpec  # noqa: E402
@@ -56,14 +56,33 @@ def _line_style(pair: PairResults) -> str:
 # ---------------------------------------------------------------------------- drawing
 
 
+def save_figure(figure: plt.Figure, path_without_suffix: Path) -> list[Path]:
+    """Lay out once, save as PNG and PDF, close. (``bbox_inches="tight"`` would draw each
+    file twice; with many axes per figure that doubles the report's plotting time.)"""
+    path_without_suffix.parent.mkdir(parents=True, exist_ok=True)
+    figure.tight_layout()
+    written = []
+    for suffix in (".png", ".pdf"):
+        path = path_without_suffix.with_suffix(suffix)
+        figure.savefig(path, dpi=110)
+        written.append(path)
+    plt.close(figure)
+    return written
+
+
 def _log_y(axes: plt.Axes) -> None:
     """Log y axis with plain tick labels and no minor ticks (mathtext tick labels and minor
     tick layout otherwise dominate the drawing time)."""
-    from matplotlib.ticker import FormatStrFormatter, NullLocator
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullLocator
 
     axes.set_yscale("log")
+    axes.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
     axes.yaxis.set_minor_locator(NullLocator())
     axes.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+
+
+def _legend_outside(axes: plt.Axes) -> None:
+    axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
 
 
 def errors_on_axes(axes: plt.Axes, series: ErrorSeries, components: tuple[int, ...], names: tuple[str, ...], scale: float = 1.0) -> None:
@@ -78,17 +97,36 @@ def errors_on_axes(axes: plt.Axes, series: ErrorSeries, components: tuple[int, .
     axes.legend(fontsize=7, loc="upper right", ncol=len(components))
 
 
+def _common_constant_band(series: list[AveragedSeries]) -> tuple[float, float] | None:
+    """The band shared by every series when each one's bounds are constant over its steps
+    and equal to the others' (same runs and dof), else None."""
+    bands = set()
+    for item in series:
+        if len(item.t) == 0 or np.ptp(item.lower) > 1e-9 or np.ptp(item.upper) > 1e-9:
+            return None
+        bands.add((round(float(item.lower[0]), 9), round(float(item.upper[0]), 9)))
+    return bands.pop() if len(bands) == 1 else None
+
+
 def anees_on_axes(axes: plt.Axes, curves: dict[str, tuple[AveragedSeries, str]]) -> None:
-    """Averaged NEES over time of several estimators with each one's 95% band."""
+    """Averaged NEES over time of several estimators with the 95% band: one grey band when
+    every estimator has the same constant one (same runs and dof), otherwise each
+    estimator's bounds as dotted lines in its colour."""
+    shared = _common_constant_band([series for series, _ in curves.values()])
+    if shared is not None:
+        axes.axhspan(shared[0], shared[1], color="0.6", alpha=0.3, linewidth=0, label="95% band")
     for index, (label, (series, style)) in enumerate(curves.items()):
         color = f"C{index % 10}"
-        axes.plot(series.t, series.mean, style, color=color, linewidth=1.0, label=f"{label} ({series.runs} runs)")
-        axes.fill_between(series.t, series.lower, series.upper, color=color, alpha=0.12, step="mid")
+        marker = "o" if len(series.t) < 3 else None
+        axes.plot(series.t, series.mean, style, color=color, linewidth=1.0, marker=marker, markersize=4, label=f"{label} ({series.runs} runs)")
+        if not shared:
+            axes.plot(series.t, series.lower, ":", color=color, linewidth=0.8)
+            axes.plot(series.t, series.upper, ":", color=color, linewidth=0.8)
     _log_y(axes)
     axes.set_xlabel("t [s]")
     axes.set_ylabel("averaged NEES")
     axes.grid(True, alpha=0.3)
-    axes.legend(fontsize=7)
+    _legend_outside(axes)
 
 
 def landmark_count_on_axes(axes: plt.Axes, counts: dict[str, tuple[RunSeries, str]]) -> None:
@@ -97,7 +135,7 @@ def landmark_count_on_axes(axes: plt.Axes, counts: dict[str, tuple[RunSeries, st
     axes.set_xlabel("t [s]")
     axes.set_ylabel("landmarks in state")
     axes.grid(True, alpha=0.3)
-    axes.legend(fontsize=7)
+    _legend_outside(axes)
 
 
 def time_per_landmarks(series: RunSeries) -> tuple[np.ndarray, np.ndarray]:
@@ -127,7 +165,7 @@ def time_vs_landmarks_on_axes(axes: plt.Axes, runs: dict[str, tuple[list[RunSeri
     axes.set_ylabel("mean time per step [ms]")
     _log_y(axes)
     axes.grid(True, alpha=0.3)
-    axes.legend(fontsize=7)
+    _legend_outside(axes)
 
 
 # ---------------------------------------------------------------------------- figures
@@ -184,12 +222,11 @@ def _anees_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]
     blocks = [block for block in NEES_BLOCK_TITLES if any(block in pair.averaged_nees for pair in pairs)]
     if not blocks:
         return []
-    figure, axes = plt.subplots(len(blocks), 1, figsize=(7.5, 2.8 * len(blocks)), squeeze=False)
+    figure, axes = plt.subplots(len(blocks), 1, figsize=(9, 2.8 * len(blocks)), squeeze=False)
     for ax, block in zip(axes[:, 0], blocks):
         curves = {pair.estimator.title: (pair.averaged_nees[block], _line_style(pair)) for pair in pairs if block in pair.averaged_nees}
         anees_on_axes(ax, curves)
         ax.set_title(f"{title}: averaged NEES, {NEES_BLOCK_TITLES[block]}, 95% band", fontsize=9)
-    figure.tight_layout()
     return save_figure(figure, out / "anees")
 
 
@@ -202,7 +239,6 @@ def _nis_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
         series = pair.series[0]
         nis_on_axes(ax, series.nis_t, series.nis, series.nis_dof)
         ax.set_title(f"{title}: {pair.estimator.title} NIS, seed {pair.finished[0].seed}", fontsize=9)
-    figure.tight_layout()
     return save_figure(figure, out / "nis")
 
 
@@ -210,7 +246,7 @@ def _landmark_count_figure(pairs: list[PairResults], title: str, out: Path) -> l
     counts = {pair.estimator.title: (pair.series[0], _line_style(pair)) for pair in pairs if pair.series and len(pair.series[0].count)}
     if not counts:
         return []
-    figure, axes = plt.subplots(figsize=(7.5, 3.2))
+    figure, axes = plt.subplots(figsize=(9, 3.2))
     landmark_count_on_axes(axes, counts)
     axes.set_title(f"{title}: landmarks in the state (first seed)", fontsize=9)
     return save_figure(figure, out / "landmark_count")
@@ -220,7 +256,7 @@ def _time_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
     runs = {pair.estimator.title: (list(pair.series), _line_style(pair)) for pair in pairs if pair.series and any(len(s.timing_t) for s in pair.series)}
     if not runs:
         return []
-    figure, axes = plt.subplots(figsize=(7.5, 3.6))
+    figure, axes = plt.subplots(figsize=(9, 3.6))
     time_vs_landmarks_on_axes(axes, runs)
     axes.set_title(f"{title}: time per step vs landmarks (filters solid, smoothers dashed)", fontsize=9)
     return save_figure(figure, out / "time_vs_landmarks")

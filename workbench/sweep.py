@@ -182,7 +182,7 @@ def plan_sweep(suite: Suite, runs: int, out: Path, backend: "Backend") -> Plan:
             continue
         usable.append(spec)
         for estimator in estimators:
-            reason = probe.compatible.get(estimator.name)
+            reason = probe.compatible.get(estimator.name) or spec.left_out_reason(estimator.name)
             if reason is not None:
                 not_applicable.append(NotApplicable(spec, estimator, reason))
     cells = []
@@ -191,7 +191,7 @@ def plan_sweep(suite: Suite, runs: int, out: Path, backend: "Backend") -> Plan:
             if seed not in seeds_for(spec, runs):
                 continue
             for estimator in estimators:
-                if probes[spec].compatible.get(estimator.name) is None:
+                if probes[spec].compatible.get(estimator.name) is None and spec.left_out_reason(estimator.name) is None:
                     cells.append(Cell(spec, spec.resolved_name(data_folder), estimator, seed, run_folder(out, spec, estimator, seed)))
     return Plan(suite, runs, out, tuple(usable), estimators, tuple(cells), tuple(not_applicable), tuple(notes))
 

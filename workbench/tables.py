@@ -177,11 +177,9 @@ def _runs_text(row: Row) -> str:
     return str(row.finished) if row.finished == row.planned else f"{row.finished}/{row.planned}"
 
 
-def _cell_text(row: Row, column: Column, plus_minus: str, percent: str = "%") -> str:
-    if row.status == "n/a":
-        return "n/a"
-    if row.status in ("failed", "missing"):
-        return row.status
+def _cell_text(row: Row, column: Column, plus_minus: str, percent: str = "%", first: bool = False) -> str:
+    if row.status in ("n/a", "failed", "missing"):
+        return row.status if first else ""
     if column.kind == "nees":
         return _nees_text(row.nees.get(column.key), percent)
     return _stat_text(row.stats.get(column.key), plus_minus)
@@ -205,7 +203,7 @@ def markdown_table(rows: list[Row], notes: list[str]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---"] * 3 + ["---:"] * len(columns)) + "|"]
     for row in rows:
         cells = [row.dataset, row.estimator, _runs_text(row) if row.status != "n/a" else "-"]
-        cells += [_cell_text(row, column, " ± ") for column in columns]
+        cells += [_cell_text(row, column, " ± ", first=index == 0) for index, column in enumerate(columns)]
         lines.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
     lines.append("")
     lines.append(
@@ -243,8 +241,8 @@ def latex_table(rows: list[Row]) -> str:
             lines.append("\\midrule")
         previous_dataset = row.dataset
         cells = [latex_escape(row.dataset), latex_escape(row.estimator), _runs_text(row) if row.status != "n/a" else "--"]
-        for column in columns:
-            text = _cell_text(row, column, "\0", "\1")
+        for index, column in enumerate(columns):
+            text = _cell_text(row, column, "\0", "\1", first=index == 0)
             cells.append(latex_escape(text).replace("\0", " $\\pm$ ").replace("\1", "\\%"))
         lines.append(" & ".join(cells) + " \\\\")
     lines += ["\\bottomrule", "\\end{tabular}"]

@@ -65,7 +65,9 @@ def bench(
                     finished = int(progress.tasks[0].completed)
                     typer.echo(f"[{finished}/{len(pending)}] {cell.describe()}: {status} ({outcome.seconds:.1f} s)", err=True)
 
+            planned = time.perf_counter()
             summary = run_sweep(plan, backend, run_plots=run_plots, on_done=on_done)
+        swept = time.perf_counter()
         written: dict[str, Path] = dict(write_tables(plan))
         if plots:
             from workbench.report_plots import write_dataset_plots
@@ -76,7 +78,8 @@ def bench(
         written["plots"] = out / "plots"
         typer.echo(
             f"{summary.ran} run(s) done, {summary.skipped} skipped (finished before), {len(summary.failed)} failed; "
-            f"{time.perf_counter() - started:.1f} s",
+            f"{time.perf_counter() - started:.1f} s (planning {planned - started:.1f} s, runs {swept - planned:.1f} s, "
+            f"tables and plots {time.perf_counter() - swept:.1f} s)",
             err=True,
         )
         return written
