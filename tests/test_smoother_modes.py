@@ -1,0 +1,104 @@
+"""iSAM2, fixed-lag and the planar variant on short runs; JCBB association without ids."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+from gtsam.symbol_shorthand import X
+
+from smoothers.backends import FixedLagBackend
+from smoothers.modes import SmootherFixedLag, SmootherIsam2
+from workbench.metrics.consistency import nees
+from workbench.metrics.state_errors import pose_error_series
+from workbench.registry import load_dataset
+
+
+def _run(estimator_class, config, sequence):
+    estimator = estimator_class(config, sequence)
+    for measurement in sequence.measurements():
+        estimator.process(measurement)
+    return estimator, estimator.estimate()
+
+
+def _position_rmse(history, sequence) -> float:
+    _, errors, _ = pose_error_series(history.pose, sequence.ground_truth)
+    d = sequence.dimension
+    translation = errors[:, 3:6] if d == 3 else errors[:, 0:2]
+    return float(np.sqrt(np.mean(np.sum(translation**2, axis=1))))
+
+
+def test_isam2_causal_and_smoothed_histories_with_covariances_on_aghili_rover():
+    sequence = load_dataset("sim:aghili-rover", 2, {"duration_s": "6"})
+    estimator, estimate = _run(SmootherIsam2, SmootherIsam2.Config(anchors=3), sequence)
+    for history in (estimate.causal, estimate.smoothed):
+        assert len(history.pose) == len(estimator.keyframe_t)
+        assert history.pose.covariances is not None
+        for block in ("velocity", "gyro_bias", "accel_bias"):
+            assert history.block(block).covariances is not None
+    assert estimate.landmarks.covariances is not None and len(estimate.landmarks) > 3
+    # Smoothing uses the future: not worse than the causal estimate, both centimetre-level.
+    assert _position_rmse(estimate.smoothed, sequence) <= _position_rmse(estimate.causal, sequence) * 1.05
+    assert _position_rmse(estimate.smoothed, sequence) < 0.2
+    # Association recorded for every measured landmark, by the scans' ids.
+    scans = sum(1 for m in sequence.measurements() if m.sensor == "landmarks")
+    assert len(estimate.diagnostics.landmark_count) == scans
+
+
+def test_fixed_lag_backend_marginalises_keys_older_than_latest_minus_lag():
+    backend = FixedLagBackend(2.0, 0.05, 1, dimension=2)
+    graph = gtsam.NonlinearFactorGraph()
+    graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+    values = gtsam.Values()
+    values.insert(X(0), gtsam.Pose2())
+    backend.update(graph, values, {X(0): 0.0}, 0.0)
+    for k in range(1, 5):
+        graph = gtsam.NonlinearFactorGraph()
+        graph.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), gtsam.Pose2(1, 0, 0), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+        values = gtsam.Values()
+        values.insert(X(k), gtsam.Pose2(k, 0, 0))
+        assert backend.leaving(float(k)) == [X(j) for j in range(k) if (k - 1) - 2.0 <= j < k - 2.0]
+        backend.update(graph, values, {X(k): float(k)}, float(k))
+        kept = sorted(gtsam.Symbol(key).index() for key in backend.estimate().keys())
+        assert kept == [j for j in range(k + 1) if j >= k - 2.0]
+
+
+def test_fixed_lag_on_aghili_rover_keeps_a_bounded_window_and_exports_everything():
+    sequence = load_dataset("sim:aghili-rover", 3, {"duration_s": "6"})
+    estimator, estimate = _run(SmootherFixedLag, SmootherFixedLag.Config(anchors=3, lag_s=1.0), sequence)
+    window = estimator.backend.estimate()
+    poses_in_window = sum(1 for key in window.keys() if chr(gtsam.Symbol(key).chr()) == "x")
+    assert poses_in_window <= 12  # 10 Hz keyframes, 1 s lag
+    assert len(estimate.smoothed.pose) == len(estimator.keyframe_t)
+    assert estimate.smoothed.pose.covariances is not None
+    _, errors, valid = pose_error_series(estimate.smoothed.pose, sequence.ground_truth)
+    values = nees(errors, estimate.smoothed.pose.covariances[valid])
+    assert np.nanmean(values) < 3 * 6
+    assert len(estimate.landmarks) > 3
+
+
+def test_planar_gyro_only_variant_on_guerreiro_loop():
+    sequence = load_dataset("sim:guerreiro-loop", 1, {"duration_s": "12"})
+    estimator, estimate = _run(SmootherIsam2, SmootherIsam2.Config(), sequence)
+    assert estimator.motion.source == "gyro"
+    assert estimate.smoothed.pose.dimension == 2
+    assert estimate.smoothed.block("velocity").frame == "body"
+    assert _position_rmse(estimate.smoothed, sequence) < 0.3
+    _, errors, valid = pose_error_series(estimate.smoothed.pose, sequence.ground_truth)
+    assert np.nanmean(nees(errors, estimate.smoothed.pose.covariances[valid])) < 3 * 3
+
+
+def test_planar_odometry_variant_on_victoria_park():
+    sequence = load_dataset("victoria-park", 0, {"max_steps": "300"})
+    estimator, estimate = _run(SmootherIsam2, SmootherIsam2.Config(), sequence)
+    assert estimator.motion.source == "odometry"
+    assert len(estimate.landmarks) > 5
+    assert np.all(np.isfinite(estimate.smoothed.pose.positions))
+
+
+def test_jcbb_association_without_ids_matches_the_true_landmarks():
+    sequence = load_dataset("sim:aghili-rover", 4, {"duration_s": "5", "ids": "false"})
+    _, estimate = _run(SmootherIsam2, SmootherIsam2.Config(anchors=3, causal_covariances=False), sequence)
+    from workbench.metrics.data_association import score_associations
+
+    score = score_associations(estimate.diagnostics, sequence.ground_truth.scan_ids)
+    assert score.precision > 0.95
