@@ -15,7 +15,8 @@ Suites:
                      estimator; under 2 minutes with 3 runs on 2 cores.
     ``paper``        the two papers' scenarios at full length, Victoria Park, KITTI IMU/GPS
                      and the synthetic lidar bag, every estimator.
-    ``consistency``  Monte Carlo NEES: the simulated scenarios, 50 runs.
+    ``consistency``  Monte Carlo NEES: the simulated scenarios (the rover's first minute,
+                     the whole loop, half a minute of the circle), 50 runs.
 """
 
 from __future__ import annotations
@@ -206,11 +207,11 @@ SUITES: dict[str, Suite] = {
         ),
         Suite(
             "consistency",
-            "Monte Carlo NEES on the simulated scenarios (50 runs)",
+            "Monte Carlo NEES on the simulated scenarios (50 runs; the rover's first minute, the whole loop, the circle)",
             datasets=(
-                DatasetSpec("sim:aghili-rover"),
+                DatasetSpec("sim:aghili-rover", (("duration_s", "60"),)),
                 DatasetSpec("sim:guerreiro-loop"),
-                DatasetSpec("sim:circle"),
+                DatasetSpec("sim:circle", (("duration_s", "30"),)),
             ),
             estimators=ALL_ESTIMATORS,
             default_runs=50,
