@@ -218,22 +218,33 @@ class _JointSearch:
         self.best_d2 = 0.0
         # Remaining measurements with at least one candidate after position ``level``.
         self.remaining = [len(order) - level for level in range(len(order) + 1)]
+        self.offsets = np.arange(self.d)
 
-    def _cov(self, a: tuple[int, int], b: tuple[int, int]) -> np.ndarray:
-        """cov(nu_a, nu_b) for pairs a=(j, i), b=(j', i'): R_jj' + P_ii' - C_ji' - C_j'i^T."""
-        d = self.d
-        (ja, ia), (jb, ib) = a, b
-        sa_z, sb_z = slice(ja * d, ja * d + d), slice(jb * d, jb * d + d)
-        sa_h, sb_h = slice(ia * d, ia * d + d), slice(ib * d, ib * d + d)
-        block = self.r[sa_z, sb_z] + self.p[sa_h, sb_h]
+    def _rows(self, j: int, i: int) -> tuple[np.ndarray, np.ndarray]:
+        return j * self.d + self.offsets, i * self.d + self.offsets
+
+    def _cross(self, zrows: np.ndarray, hrows: np.ndarray, zr: np.ndarray, hr: np.ndarray) -> np.ndarray:
+        """cov(nu_H, nu_new) for the stacked hypothesis rows: R + P - C_zh - C_hz."""
+        block = self.r[np.ix_(zrows, zr)] + self.p[np.ix_(hrows, hr)]
         if self.c is not None:
-            block = block - self.c[sa_z, sb_h] - self.c[sb_z, sa_h].T
+            block = block - self.c[np.ix_(zrows, hr)] - self.c[np.ix_(zr, hrows)].T
         return block
 
     def run(self) -> None:
-        self._descend(0, [], np.zeros((0, 0)), np.zeros(0), 0.0, set())
+        empty = np.zeros(0, dtype=int)
+        self._descend(0, [], empty, empty, np.zeros((0, 0)), np.zeros(0), 0.0, set())
 
-    def _descend(self, level: int, pairs: list[tuple[int, int]], chol: np.ndarray, whitened: np.ndarray, d2: float, used: set[int]) -> None:
+    def _descend(
+        self,
+        level: int,
+        pairs: list[tuple[int, int]],
+        zrows: np.ndarray,
+        hrows: np.ndarray,
+        chol: np.ndarray,
+        whitened: np.ndarray,
+        d2: float,
+        used: set[int],
+    ) -> None:
         if level == len(self.order):
             if len(pairs) > len(self.best) or (len(pairs) == len(self.best) and d2 < self.best_d2):
                 self.best = list(pairs)
@@ -252,9 +263,9 @@ class _JointSearch:
                 self.truncated = True
                 return
             self.nodes += 1
-            new = (j, i)
-            cross = np.concatenate([self._cov(p, new) for p in pairs], axis=0) if pairs else np.zeros((0, self.d))
-            block = self._cov(new, new)
+            zr, hr = self._rows(j, i)
+            cross = self._cross(zrows, hrows, zr, hr)
+            block = self._cross(zr, hr, zr, hr)
             try:
                 l21 = np.linalg.solve(chol, cross).T if pairs else np.zeros((self.d, 0))
                 l22 = np.linalg.cholesky(block - l21 @ l21.T)
@@ -271,15 +282,24 @@ class _JointSearch:
             new_chol[n:, :n] = l21
             new_chol[n:, n:] = l22
             used.add(i)
-            pairs.append(new)
-            self._descend(level + 1, pairs, new_chol, np.concatenate([whitened, b2]), new_d2, used)
+            pairs.append((j, i))
+            self._descend(
+                level + 1,
+                pairs,
+                np.concatenate([zrows, zr]),
+                np.concatenate([hrows, hr]),
+                new_chol,
+                np.concatenate([whitened, b2]),
+                new_d2,
+                used,
+            )
             pairs.pop()
             used.discard(i)
         if self.truncated:
             return
         # The star branch (measurement j unpaired), only if it can still beat the best.
         if len(pairs) + self.remaining[level + 1] > len(self.best):
-            self._descend(level + 1, pairs, chol, whitened, d2, used)
+            self._descend(level + 1, pairs, zrows, hrows, chol, whitened, d2, used)
 
 
 def associate_jcbb(
