@@ -325,9 +325,7 @@ class EkfSlam:
             nu = innovation[block]
             self.recorder.nis(t, float(nu @ np.linalg.solve(S[block, block], nu)), d)
         gain = np.linalg.solve(S, HP).T  # K = P H^T S^-1 (S symmetric)
-        KHP = gain @ HP
-        updated = P - KHP - KHP.T + gain @ S @ gain.T
-        self.covariance = 0.5 * (updated + updated.T)
+        self.covariance = joseph_update(P, HP, S, gain)
         self._inject(gain @ innovation)
 
     def _inject(self, correction: np.ndarray) -> None:
@@ -424,6 +422,22 @@ class EkfSlam:
             f"{len(self.map_ids)} landmarks mapped ({single} seen only once), {self.gaps} motion gaps > {self.config.max_gap_s} s",
         )
         return self.recorder.build(landmarks=final_map, notes=notes)
+
+
+def joseph_update(P: np.ndarray, HP: np.ndarray, S: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """Joseph-form covariance update ``(I - K H) P (I - K H)^T + K R K^T`` in O(n^2 p).
+
+    Expanded with ``S = H P H^T + R``: ``P - K H P - (K H P)^T + K S K^T``, the same matrix
+    for *any* gain ``K`` (not only the optimal one), which is what makes the Joseph form
+    robust; symmetrised on return.
+
+    Args:
+        P: prior covariance (n, n). HP: ``H @ P`` (p, n). S: innovation covariance (p, p).
+        gain: K (n, p).
+    """
+    KHP = gain @ HP
+    updated = P - KHP - KHP.T + gain @ S @ gain.T
+    return 0.5 * (updated + updated.T)
 
 
 def _first(*values: float | None) -> float:
