@@ -99,11 +99,13 @@ class UtiasOptions(BaseModel):
 
 @dataclass(frozen=True)
 class _Table:
-    """A parsed numeric file: values (n, k) and the 1-based line number of every row."""
+    """A parsed numeric file: values (n, k), the 1-based line number of every row and the
+    number of decimals printed in its first column (the time's printing resolution)."""
 
     values: np.ndarray
     lines: np.ndarray
     path: Path
+    first_decimals: np.ndarray
 
 
 def read_table(path: Path, columns: tuple[str, ...]) -> _Table:
@@ -117,6 +119,7 @@ def read_table(path: Path, columns: tuple[str, ...]) -> _Table:
         raise InputError(f"{path}: file not found")
     rows: list[list[float]] = []
     lines: list[int] = []
+    decimals: list[int] = []
     with path.open("r", encoding="utf-8", errors="replace") as handle:
         for number, line in enumerate(handle, start=1):
             text = line.split("#", 1)[0].strip()
@@ -135,9 +138,11 @@ def read_table(path: Path, columns: tuple[str, ...]) -> _Table:
                 raise InputError(f"{path}:{number}: non-finite value in '{text}'")
             rows.append(values)
             lines.append(number)
+            mantissa = fields[0].lower().split("e")[0]
+            decimals.append(len(mantissa.partition(".")[2]))
     if not rows:
         raise InputError(f"{path}: no data rows")
-    return _Table(np.array(rows), np.array(lines), path)
+    return _Table(np.array(rows), np.array(lines), path, np.array(decimals))
 
 
 def printing_resolution(t: np.ndarray, significant_digits: int = 5) -> np.ndarray:
@@ -146,11 +151,19 @@ def printing_resolution(t: np.ndarray, significant_digits: int = 5) -> np.ndarra
     return 10.0 ** (magnitude - (significant_digits - 1))
 
 
-def grid_times(printed: np.ndarray, step_s: float) -> np.ndarray | None:
+def grid_times(printed: np.ndarray, step_s: float, decimals: np.ndarray | None = None) -> np.ndarray | None:
     """Row-index times ``t0 + i * step_s`` when every printed time agrees within its printing
-    resolution (half a unit of the last printed digit, plus float slack); else None."""
+    resolution, else None.
+
+    The resolution of a row is the finer of "5 significant digits" (this copy's format) and
+    the decimals actually printed (so that long unix times with 3 decimals are judged at
+    1 ms); the tolerance is half of it plus float slack.
+    """
     grid = printed[0] + np.arange(len(printed)) * step_s
-    tolerance = 0.5 * printing_resolution(grid) + 1e-9
+    resolution = printing_resolution(grid)
+    if decimals is not None:
+        resolution = np.minimum(resolution, 10.0 ** (-np.asarray(decimals, dtype=float)))
+    tolerance = 0.5 * resolution + 1e-9
     return grid if np.all(np.abs(printed - grid) <= tolerance) else None
 
 
@@ -266,8 +279,8 @@ def load_mrclam(folder: Path, robot: int, config: UtiasOptions, name: str | None
     sightings = read_table(folder / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
 
     step = config.grid_step_s
-    odo_grid = grid_times(odometry.values[:, 0], step)
-    truth_grid = grid_times(truth.values[:, 0], step)
+    odo_grid = grid_times(odometry.values[:, 0], step, odometry.first_decimals)
+    truth_grid = grid_times(truth.values[:, 0], step, truth.first_decimals)
     if odo_grid is not None and truth_grid is not None:
         time_source = "row_grid"
         odo_t, odo_values = odo_grid, odometry.values[:, 1:]

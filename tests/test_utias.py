@@ -1,0 +1,216 @@
+"""UTIAS MRCLAM loader: time recovery, quirks counted, swapped labels, covariances, bad input.
+
+Real-data tests read ../shared/data/utias-mrclam1 beside the clone and skip when it is
+absent; the bad-input and printed-time tests write small MRCLAM folders into tmp_path.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from datasets.errors import InputError
+from datasets.measurements import GyroSample, LandmarkScan, Odometry
+from datasets.rotations import rot2, wrap_angle
+from datasets.utias import (
+    UtiasOptions,
+    grid_times,
+    load,
+    load_mrclam,
+    range_bearing_to_points,
+    repair_heading_glitches,
+)
+
+UTIAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"
+needs_data = pytest.mark.skipif(not UTIAS.is_dir(), reason=f"UTIAS MRCLAM data absent (expected at {UTIAS})")
+
+
+@pytest.fixture(scope="module")
+def robot1():
+    if not UTIAS.is_dir():
+        pytest.skip(f"UTIAS MRCLAM data absent (expected at {UTIAS})")
+    sequence = load(f"{UTIAS}#robot1", 0, {})
+    return sequence, list(sequence.measurements())
+
+
+# ---------------------------------------------------------------- pure helpers
+def test_grid_times_accept_rounded_printing_and_reject_irregular_rows() -> None:
+    printed = np.array([999.96, 999.98, 1000.0, 1000.0, 1000.0, 1000.1, 1000.1, 1000.1, 1000.1, 1000.1, 1000.2])
+    recovered = grid_times(printed, 0.02)
+    assert recovered is not None
+    np.testing.assert_allclose(np.diff(recovered), 0.02)
+    assert grid_times(np.array([0.0, 0.02, 0.05, 0.06]), 0.02) is None
+
+
+def test_heading_glitch_runs_are_replaced_by_the_short_way_round() -> None:
+    heading = np.array([3.12, 3.13, 3.14, -1.72, 2.33, 3.138, -3.14, -3.13])  # a 2-sample glitch, then a real wrap
+    repaired, count = repair_heading_glitches(heading, 0.02, 3.0)
+    assert count == 2
+    assert np.all(np.abs(wrap_angle(np.diff(repaired))) < 0.05)
+    np.testing.assert_allclose(repaired[[0, 1, 2, 5, 6, 7]], heading[[0, 1, 2, 5, 6, 7]])
+
+
+def test_range_bearing_covariance_matches_monte_carlo() -> None:
+    rng = np.random.default_rng(0)
+    r, b, sr, sb = 3.0, 0.6, 0.05, 0.01
+    points, cov = range_bearing_to_points(np.array([r]), np.array([b]), np.array([sr]), sb)
+    np.testing.assert_allclose(points[0], [r * np.cos(b), r * np.sin(b)])
+    samples = rng.normal([r, b], [sr, sb], size=(200_000, 2))
+    cloud = np.stack([samples[:, 0] * np.cos(samples[:, 1]), samples[:, 0] * np.sin(samples[:, 1])], -1)
+    np.testing.assert_allclose(np.cov(cloud.T), cov[0], rtol=0.02, atol=1e-7)
+
+
+# ---------------------------------------------------------------- real data
+@needs_data
+def test_robot1_stream_times_and_kinds(robot1) -> None:
+    sequence, stream = robot1
+    assert sequence.metadata["time_source"] == "row_grid"
+    gyro_t = np.array([m.t for m in stream if isinstance(m, GyroSample)])
+    odometry = [m for m in stream if isinstance(m, Odometry)]
+    assert len(gyro_t) == len(odometry) == 75000
+    np.testing.assert_allclose(np.diff(gyro_t), 0.02, atol=1e-9)  # also after 1000 s, where the file rounds to 0.1 s
+    assert all(m.velocity is not None and m.velocity.shape == (2,) for m in odometry[:100])
+    times = np.array([m.t for m in stream])
+    assert np.all(np.diff(times) >= 0)
+    gyro = next(m for m in stream if isinstance(m, GyroSample) and m.t > 100)
+    odo = next(m for m in odometry if m.t == gyro.t)
+    assert gyro.rate.shape == (1,) and gyro.rate[0] == odo.velocity[1]
+
+
+@needs_data
+def test_robot1_quirks_are_counted(robot1) -> None:
+    sequence, stream = robot1
+    counts = sequence.metadata["counts"]
+    assert counts["robot_barcodes"] > 500  # other robots are seen often
+    assert 0 < counts["stale_repeats"] < 200
+    assert counts["vicon_heading_samples_repaired"] > 0
+    scans = [m for m in stream if isinstance(m, LandmarkScan)]
+    robot_barcodes = {5, 14, 41, 32, 23}
+    assert not robot_barcodes & set(np.concatenate([s.ids for s in scans]).tolist())
+    truth = sequence.ground_truth
+    rates = np.abs(wrap_angle(np.diff(truth.pose.rotations))) / np.diff(truth.pose.t)
+    assert rates.max() < 3.0  # no glitch left (the robot turns at most 0.57 rad/s commanded)
+    assert len(truth.scan_ids) == len(scans)
+
+
+@needs_data
+def test_initial_state_is_the_first_vicon_pose(robot1) -> None:
+    sequence, _ = robot1
+    truth = sequence.ground_truth.pose
+    np.testing.assert_allclose(sequence.initial_state.position, truth.positions[0])
+    assert float(sequence.initial_state.rotation) == pytest.approx(truth.rotations[0])
+
+
+def _mean_world_sighting(sequence, stream, barcode: int) -> np.ndarray:
+    pose = sequence.ground_truth.pose
+    world = []
+    for scan in stream:
+        if isinstance(scan, LandmarkScan) and barcode in scan.ids:
+            i = min(np.searchsorted(pose.t, scan.t), len(pose.t) - 1)
+            point = scan.points[list(scan.ids).index(barcode)]
+            world.append(pose.positions[i] + rot2(pose.rotations[i]) @ point)
+    return np.median(np.array(world), axis=0)
+
+
+@needs_data
+def test_swapped_labels_18_and_61_are_fixed_by_default(robot1) -> None:
+    sequence, stream = robot1
+    fixed = sequence.ground_truth.landmarks
+    as_filed = load(f"{UTIAS}#robot1", 0, {"fix_swapped_labels": "false", "duration_s": "10"}).ground_truth.landmarks
+    for barcode in (18, 61):
+        seen = _mean_world_sighting(sequence, stream, barcode)
+        assert np.linalg.norm(fixed.positions[list(fixed.ids).index(barcode)] - seen) < 0.1
+        assert np.linalg.norm(as_filed.positions[list(as_filed.ids).index(barcode)] - seen) > 1.0
+    # every other landmark agrees with the survey either way
+    for barcode in (9, 25, 54, 90):
+        seen = _mean_world_sighting(sequence, stream, barcode)
+        assert np.linalg.norm(as_filed.positions[list(as_filed.ids).index(barcode)] - seen) < 0.1
+
+
+@needs_data
+def test_ids_can_be_withheld_and_options_checked() -> None:
+    sequence = load(f"{UTIAS}#robot1", 0, {"ids": "false", "duration_s": "60"})
+    scans = [m for m in sequence.measurements() if isinstance(m, LandmarkScan)]
+    assert scans and all(scan.ids is None for scan in scans)
+    assert len(sequence.ground_truth.scan_ids) == len(scans)
+    assert sequence.ground_truth.pose.t[-1] <= 60.0
+    with pytest.raises(InputError, match="known keys"):
+        load(f"{UTIAS}#robot1", 0, {"idz": "false"})
+    with pytest.raises(InputError, match="robotN"):
+        load(f"{UTIAS}#rover1", 0, {})
+    with pytest.raises(InputError, match="does not exist"):
+        load("/nonexistent/folder#robot1", 0, {})
+
+
+# ---------------------------------------------------------------- small synthetic folders
+def write_folder(folder: Path, odometry: list[str], measurements: list[str], truth: list[str] | None = None) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "Barcodes.dat").write_text("# Subject # Barcode #\n1 5\n2 14\n3 41\n4 32\n5 23\n6 72\n7 27\n")
+    (folder / "Landmark_Groundtruth.dat").write_text("# s x y sx sy\n6 1.0 2.0 0.001 0.001\n7 3.0 -1.0 0.001 0.001\n")
+    (folder / "Robot1_Odometry.dat").write_text("\n".join(odometry) + "\n")
+    (folder / "Robot1_Measurement.dat").write_text("\n".join(measurements) + "\n")
+    truth = truth or [f"{line.split()[0]} 0.0 0.0 0.0" for line in odometry]
+    (folder / "Robot1_Groundtruth.dat").write_text("\n".join(truth) + "\n")
+    return folder
+
+
+def grid_odometry(rows: int) -> list[str]:
+    return [f"{0.02 * i:.5g} 0.1 0.0" for i in range(rows)]
+
+
+def test_truncated_measurement_file_names_file_and_line(tmp_path: Path) -> None:
+    folder = write_folder(tmp_path / "d", grid_odometry(50), ["# time barcode range bearing", "0.1 72 2.0 0.1", "0.2 27 3.0"])
+    with pytest.raises(InputError, match=r"Robot1_Measurement\.dat:3: expected 4 columns"):
+        load_mrclam(folder, 1, UtiasOptions())
+
+
+def test_malformed_number_names_file_and_line(tmp_path: Path) -> None:
+    odometry = grid_odometry(10)
+    odometry[6] = "0.12 0.1 x"
+    folder = write_folder(tmp_path / "d", odometry, ["0.1 72 2.0 0.1"])
+    with pytest.raises(InputError, match=r"Robot1_Odometry\.dat:7: not a number"):
+        load_mrclam(folder, 1, UtiasOptions())
+
+
+def test_unknown_robot_duplicate_and_out_of_range_sightings_are_dropped_and_counted(tmp_path: Path) -> None:
+    sightings = [
+        "0.10 72 2.0 0.1",
+        "0.10 72 2.1 0.1",  # same barcode twice at one time
+        "0.12 99 2.0 0.1",  # unknown barcode
+        "0.14 14 1.0 0.0",  # another robot
+        "0.20 27 3.0 -0.2",
+        "0.30 27 3.0 -0.2",  # stale repeat
+        "0.40 72 1.9 0.12",
+        "5.00 72 1.9 0.12",  # after the last odometry row
+    ]
+    folder = write_folder(tmp_path / "d", grid_odometry(50), sightings)
+    sequence = load_mrclam(folder, 1, UtiasOptions(ids=True))
+    counts = sequence.metadata["counts"]
+    assert counts["duplicate_sightings"] == 1
+    assert counts["unknown_barcodes"] == 1
+    assert counts["robot_barcodes"] == 1
+    assert counts["stale_repeats"] == 1
+    assert counts["out_of_range_times"] == 1
+    scans = [m for m in sequence.measurements() if isinstance(m, LandmarkScan)]
+    assert [list(scan.ids) for scan in scans] == [[72], [27], [72]]
+    np.testing.assert_allclose(scans[0].points[0], [2.0 * np.cos(0.1), 2.0 * np.sin(0.1)])
+    sigma_r = max(0.05, 0.05 * 2.0)
+    assert np.trace(scans[0].covariances[0]) == pytest.approx(sigma_r**2 + (2.0 * 0.03) ** 2)
+
+
+def test_irregular_printed_times_gap_and_duplicate_rows(tmp_path: Path) -> None:
+    # an original (not resampled) MRCLAM log: unix-like times, a duplicate row, a 2 s gap
+    base = 1248272272.0
+    times = [base + 0.015 * i for i in range(20)] + [base + 0.015 * 19] + [base + 2.5 + 0.015 * i for i in range(10)]
+    odometry = [f"{t:.3f} 0.2 0.1" for t in times]
+    folder = write_folder(tmp_path / "d", odometry, [f"{base + 0.1:.3f} 72 2.0 0.1"])
+    sequence = load_mrclam(folder, 1, UtiasOptions())
+    assert sequence.metadata["time_source"] == "printed"
+    assert sequence.metadata["counts"]["odometry_time_not_increasing"] == 1
+    gaps = sequence.metadata["odometry_gaps"]
+    assert len(gaps) == 1 and gaps[0][1] == pytest.approx(2.5 - 0.015 * 19, abs=1e-3)
+    stream = list(sequence.measurements())
+    assert stream[0].t == pytest.approx(0.0)
+    assert sum(isinstance(m, Odometry) for m in stream) == 30
