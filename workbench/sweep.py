@@ -360,9 +360,13 @@ def run_sweep(
     backend: Backend,
     run_plots: bool = False,
     on_done: Callable[[Cell, CellOutcome], None] | None = None,
+    cells: list[Cell] | None = None,
 ) -> SweepSummary:
-    """Run every unfinished cell of the plan on the backend; ``on_done`` after each."""
+    """Run every unfinished cell of the plan (or the given ``cells``) on the backend;
+    ``on_done`` after each."""
     pending, skipped = pending_cells(plan)
+    if cells is not None:
+        pending = cells
     futures = {backend.submit(run_cell, cell, run_plots): cell for cell in pending}
     failed = []
     for future in backend.as_completed(futures):

@@ -28,9 +28,11 @@ def bench(
     plots: bool = True,
     run_plots: bool = False,
     show_progress: bool | None = None,
+    report_only: bool = False,
 ) -> dict[str, Path]:
     """Run the suite and write tables and plots; returns the written table paths and the
-    plots folder (key ``plots``)."""
+    plots folder (key ``plots``). ``report_only``: run nothing, report the runs on disk
+    (unfinished ones show as missing)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from workbench.sweep import make_backend, pending_cells, plan_sweep, run_sweep
@@ -47,6 +49,8 @@ def bench(
         for note in plan.notes:
             typer.echo(f"note: {note}", err=True)
         pending, done = pending_cells(plan)
+        if report_only:
+            pending = []
         typer.echo(
             f"suite {suite.name}: {len(plan.cells)} runs ({done} already done, {len(pending)} to run) on {backend.describe()}",
             err=True,
@@ -66,7 +70,7 @@ def bench(
                     typer.echo(f"[{finished}/{len(pending)}] {cell.describe()}: {status} ({outcome.seconds:.1f} s)", err=True)
 
             planned = time.perf_counter()
-            summary = run_sweep(plan, backend, run_plots=run_plots, on_done=on_done)
+            summary = run_sweep(plan, backend, run_plots=run_plots, on_done=on_done, cells=pending)
         swept = time.perf_counter()
         written: dict[str, Path] = dict(write_tables(plan))
         if plots:
@@ -97,12 +101,13 @@ def register(app: typer.Typer) -> None:
         workers: Annotated[Optional[int], typer.Option("--workers", help="local worker processes (default: CPU count)")] = None,
         plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the comparison figures")] = True,
         run_plots: Annotated[bool, typer.Option("--run-plots", help="also write each run folder's own figures (slower)")] = False,
+        report_only: Annotated[bool, typer.Option("--report-only", help="run nothing: table and plots of the runs on disk")] = False,
     ) -> None:
         """Run a benchmark suite: every estimator on every dataset it can run on, N seeds,
         then the comparison table and plots. Re-running resumes."""
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
-        written = bench(suite, runs, out or Path("runs") / suite, scheduler, workers, plots, run_plots)
+        written = bench(suite, runs, out or Path("runs") / suite, scheduler, workers, plots, run_plots, report_only=report_only)
         typer.echo(written["md"].read_text(), nl=False)
         typer.echo(f"table: {written['md']} (.tex, .csv)")
         if plots:
