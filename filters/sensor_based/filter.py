@@ -37,7 +37,7 @@ from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measureme
 from datasets.rotations import matrix_from_quat_wxyz, rot2
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
-from filters.association import associate_jcbb, chi2_gate
+from filters.association import associate_jcbb, chi2_gate, individual_compatibility
 from filters.sensor_based.dynamics import ProcessNoise, propagate, rate_dimension
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
 from filters.sensor_based.state import FilterState
@@ -76,6 +76,12 @@ class SensorBasedConfig(BaseModel):
         "jcbb", description="jcbb, or ids (use the scan's ids when it has them; JCBB otherwise)"
     )
     gate_probability: float = Field(0.99, gt=0, lt=1, description="chi-square gate probability (individual and joint)")
+    new_landmark_gate_probability: float = Field(
+        0.9999,
+        gt=0,
+        lt=1,
+        description="an unassociated measurement starts a landmark only if outside every landmark's gate at this looser probability",
+    )
     max_jcbb_nodes: int = Field(20_000, ge=1, description="cap on JCBB interpretation-tree nodes per scan")
     association_window_s: float = Field(
         20.0, gt=0, description="associate only landmarks seen within this many seconds (the paper's I_cur)"
@@ -91,7 +97,7 @@ class SensorBasedConfig(BaseModel):
     )
     in_view_range_m: float = Field(5.0, gt=0, description="landmarks predicted within this range should be seen [m]")
     field_of_view_deg: float = Field(360.0, gt=0, le=360, description="sensor horizontal field of view [deg]")
-    max_missed_in_view: int = Field(40, ge=1, description="consecutive in-view misses before deletion")
+    max_missed_in_view: int = Field(100, ge=1, description="consecutive in-view misses before deletion")
     min_observations: int = Field(3, ge=1, description="fewer sightings than this by probation_s: deleted")
     probation_s: float = Field(3.0, ge=0, description="age at which min_observations is checked [s]")
     max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
@@ -231,7 +237,7 @@ class SensorBasedSlam:
         self._propagate_to(scan.t)
         t = float(scan.t)
         k = points.shape[0]
-        usable = np.all(np.isfinite(points), axis=1) & np.all(np.isfinite(covs.reshape(k, -1)), axis=1)
+        usable = np.all(np.isfinite(points), axis=1) & np.all(np.isfinite(covs.reshape(k, d * d)), axis=1)
         if not usable.all():
             self.skipped["nan_points"] += int((~usable).sum())
             self.recorder.event(t, "skipped_input", reason="non-finite scan points dropped", count=int((~usable).sum()))
@@ -264,9 +270,14 @@ class SensorBasedSlam:
             for local, j in enumerate(usable_idx):
                 if result.assignments[local] >= 0:
                     assignment[j] = int(ids[cur_idx[result.assignments[local]]])
-            # New landmark only when compatible with no landmark at all (an ambiguous one
-            # is dropped: a duplicate would later steal associations).
-            unassigned_new = [j for local, j in enumerate(usable_idx) if result.assignments[local] < 0 and result.candidate_counts[local] == 0]
+            # New landmark only when compatible with no landmark even at a looser gate: at
+            # the association gate 1 % of true measurements fall outside their own
+            # landmark's gate and would otherwise become duplicates.
+            near = np.zeros(len(usable_idx), dtype=bool)
+            if len(cur_idx) and len(usable_idx):
+                distances = individual_compatibility(points[usable_idx], covs[usable_idx], positions[cur_idx], joint[np.ix_(cur_rows, cur_rows)])
+                near = (distances < chi2_gate(d, self.config.new_landmark_gate_probability)).any(axis=1)
+            unassigned_new = [j for local, j in enumerate(usable_idx) if result.assignments[local] < 0 and not near[local]]
             if result.truncated:
                 self.recorder.event(t, "jcbb_truncated", nodes=result.nodes)
 

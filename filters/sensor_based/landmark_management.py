@@ -40,7 +40,7 @@ class ManagementPolicy:
     in_view_min_range_m: float = 0.3
     field_of_view_deg: float = 360.0
     in_view_max_sigma_m: float = 0.5
-    max_missed_in_view: int = 40
+    max_missed_in_view: int = 100
     min_observations: int = 3
     probation_s: float = 3.0
     max_landmarks: int = 200
