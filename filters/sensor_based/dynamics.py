@@ -147,16 +147,21 @@ def propagate(
         out = np.zeros_like(matrix)
         if count:
             feature_rows = matrix[nv:].reshape(count, d, -1)
-            out[nv:] = (
-                np.einsum("fdv,vk->fdk", a_vehicle, matrix[:nv]) + np.einsum("fde,fek->fdk", a_own, feature_rows)
-            ).reshape(count * d, -1)
+            out[nv:] = a_vehicle.reshape(count * d, nv) @ matrix[:nv] + np.matmul(a_own, feature_rows).reshape(count * d, -1)
         return out
 
     ap = apply_a(covariance)
     apat = apply_a(ap.T)
-    predicted = covariance + dt * (ap + ap.T) + dt * dt * apat
-    predicted += process_covariance(features, is_position, noise, dt, d)
-    return x_next, 0.5 * (predicted + predicted.T)
+    predicted = ap + ap.T
+    predicted *= dt
+    predicted += covariance
+    apat *= dt * dt
+    predicted += apat
+    add_process_covariance(predicted, features, is_position, noise, dt, d)
+    # symmetrise in place (round-off only: every term above is symmetric)
+    predicted += predicted.T
+    predicted *= 0.5
+    return x_next, predicted
 
 
 def process_covariance(features: np.ndarray, is_position: np.ndarray, noise: ProcessNoise, dt: float, dimension: int) -> np.ndarray:
@@ -166,6 +171,18 @@ def process_covariance(features: np.ndarray, is_position: np.ndarray, noise: Pro
     direction) + Ts sigma_g^2 G G^T`` with ``G`` stacking ``M(f_i)`` (the gyro white noise
     enters every feature's derivative as ``M(f_i) n``; continuous density ``sigma_g``).
     """
+    nv = dimension + rate_dimension(dimension)
+    count = features.shape[0]
+    q = np.zeros((nv + count * dimension, nv + count * dimension))
+    add_process_covariance(q, features, is_position, noise, dt, dimension)
+    return q
+
+
+def add_process_covariance(
+    covariance: np.ndarray, features: np.ndarray, is_position: np.ndarray, noise: ProcessNoise, dt: float, dimension: int
+) -> None:
+    """``covariance += Xi_F`` in place (see ``process_covariance``), without an n x n temporary
+    for the diagonal part."""
     d = dimension
     r = rate_dimension(d)
     nv = d + r
@@ -177,8 +194,8 @@ def process_covariance(features: np.ndarray, is_position: np.ndarray, noise: Pro
             np.repeat(np.where(is_position, noise.landmark_m**2, noise.direction**2), d),
         ]
     )
-    q = np.diag(dt * diagonal)
+    index = np.arange(diagonal.size)
+    covariance[index, index] += dt * diagonal
     if count and noise.gyro_noise_density > 0.0:
         g = bias_coupling(features).reshape(count * d, r)
-        q[nv:, nv:] += dt * noise.gyro_noise_density**2 * (g @ g.T)
-    return q
+        covariance[nv:, nv:] += (dt * noise.gyro_noise_density**2) * (g @ g.T)

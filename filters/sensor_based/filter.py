@@ -283,7 +283,9 @@ class SensorBasedSlam:
 
         self.state.visible[:] = False  # I_O is redefined by every scan (section IV-B)
         self._update(t, points, covs, directions, assignment)
-        for j in self._distinct(points, covs, unassigned_new):
+        if not (self.config.association == "ids" and scan.ids is not None):
+            unassigned_new = self._distinct(points, covs, unassigned_new)  # ids are distinct already
+        for j in unassigned_new:
             landmark_id = self._add_landmark(t, points[j], covs[j], None if directions is None else directions[j])
             assignment[j] = landmark_id
             is_new[j] = True
