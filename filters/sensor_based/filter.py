@@ -34,11 +34,12 @@ from pydantic import BaseModel, ConfigDict, Field
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
-from datasets.rotations import matrix_from_quat_wxyz, rot2
+from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, so3_exp
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
 from filters.association import associate_jcbb, chi2_gate, individual_compatibility
-from filters.sensor_based.dynamics import ProcessNoise, propagate, rate_dimension
+from filters.sensor_based.dynamics import ProcessNoise, propagate, rate_dimension, skew_rate
+from filters.sensor_based.earth_frame import EarthFrameTracker
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
 from filters.sensor_based.state import FilterState
 from filters.sensor_based.update import kalman_update
@@ -101,6 +102,9 @@ class SensorBasedConfig(BaseModel):
     min_observations: int = Field(3, ge=1, description="fewer sightings than this by probation_s: deleted")
     probation_s: float = Field(3.0, ge=0, description="age at which min_observations is checked [s]")
     max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
+    earth_frame: bool = Field(
+        True, description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose"
+    )
     snapshot_every: int = Field(1, ge=1, description="record a landmark snapshot every N scans")
 
 
@@ -154,12 +158,20 @@ class SensorBasedSlam:
             )
         )
         self.recorder = EstimateRecorder(d)
+        start_rotation, start_position = np.eye(d), np.zeros(d)
+        if start is not None:
+            start_rotation = rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
+            start_position = np.asarray(start.position, dtype=float)
+        self.earth = EarthFrameTracker(d, start_rotation, start_position) if config.earth_frame else None
+        self._motion_rotation = np.eye(d)  # the filter's own motion since the last scan (fallback)
+        self._motion_translation = np.zeros(d)
         self.t: float | None = None if start is None else float(start.t)
         self.rate: np.ndarray | None = None
         self.scan_count = 0
         self.skipped: dict[str, int] = {"nan_rate": 0, "nan_points": 0, "scan_without_rate": 0}
         self.true_to_map: dict[int, int] = {}
         self._record_vehicle(self.t if self.t is not None else 0.0)
+        self._record_pose(self.t if self.t is not None else 0.0)
 
     @staticmethod
     def _vector(values: list[float], size: int, name: str) -> np.ndarray:
@@ -212,6 +224,7 @@ class SensorBasedSlam:
         steps = max(1, int(math.ceil(dt / self.config.max_step_s - 1e-9)))
         state = self.state
         for _ in range(steps):
+            self._accumulate_motion(rate, dt / steps)
             state.x, state.covariance = propagate(
                 state.x,
                 state.covariance,
@@ -224,6 +237,16 @@ class SensorBasedSlam:
                 self.dimension,
             )
         self.t = float(t)
+
+    def _accumulate_motion(self, rate: np.ndarray, dt: float) -> None:
+        """Dead-reckoned body motion since the last scan from ``omega_m - b_hat`` and ``v_hat``
+        (only the Earth-frame fallback uses it)."""
+        if self.earth is None:
+            return
+        self._motion_translation = self._motion_translation + self._motion_rotation @ (self.state.velocity * dt)
+        omega = (np.asarray(rate, dtype=float) - self.state.bias) * dt
+        increment = rot2(float(omega[0])) if self.dimension == 2 else so3_exp(omega)
+        self._motion_rotation = self._motion_rotation @ increment
 
     # ------------------------------------------------------------------ scans
     def _scan(self, scan: LandmarkScan) -> None:
@@ -307,6 +330,12 @@ class SensorBasedSlam:
         self.recorder.landmark_count(t, len(state.landmark_ids()))
         self.recorder.extra("visible_landmarks", float(len(seen_ids)))
         self._record_vehicle(t)
+        if self.earth is not None:
+            ids, positions, joint = state.landmark_positions()
+            blocks = np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))]) if len(ids) else np.zeros((0, d, d))
+            self.earth.step(ids, positions, blocks, self._motion_rotation, self._motion_translation)
+            self._motion_rotation, self._motion_translation = np.eye(d), np.zeros(d)
+            self._record_pose(t)
         if self.scan_count % self.config.snapshot_every == 0:
             self.recorder.landmarks(self.landmark_map(t))
 
@@ -405,9 +434,35 @@ class SensorBasedSlam:
         self.recorder.extra("vehicle_state", state.x[:nv].copy())
         self.recorder.extra("vehicle_covariance", state.covariance[:nv, :nv].ravel().copy())
 
+    def _record_pose(self, t: float) -> None:
+        """The Earth-frame pose (derived from the map history; no covariance)."""
+        if self.earth is None:
+            return
+        rotation = self.earth.rotation
+        if self.dimension == 2:
+            self.recorder.pose(t, self.earth.position.copy(), float(np.arctan2(rotation[1, 0], rotation[0, 0])), None)
+        else:
+            self.recorder.pose(t, self.earth.position.copy(), quat_wxyz_from_matrix(rotation), None)
+
+    def earth_map(self) -> LandmarkMap | None:
+        """The current map in the Earth frame (derived; covariances rotated, pose uncertainty ignored)."""
+        if self.earth is None:
+            return None
+        current = self.landmark_map(self.t if self.t is not None else 0.0)
+        rotation = self.earth.rotation
+        covs = None if current.covariances is None else rotation @ current.covariances @ rotation.T
+        return LandmarkMap(ids=current.ids, positions=self.earth.to_earth(current.positions), covariances=covs, frame=Frame.WORLD, t=None)
+
     def estimate(self) -> Estimate:
+        pose_note = (
+            f"pose: Earth-frame trajectory DERIVED from consecutive body-frame maps by rigid alignment "
+            f"({self.earth.aligned_steps} aligned, {self.earth.fallback_steps} dead-reckoned increments); no covariance"
+            if self.earth is not None
+            else "robocentric only: no world pose"
+        )
         notes = [
-            "robocentric: velocity and landmarks are body-frame; no world pose in the causal history",
+            "velocity and landmarks are body-frame (robocentric filter state)",
+            pose_note,
             f"landmarks deleted: {self.manager.deleted}",
         ]
         if any(self.skipped.values()):

@@ -1,0 +1,112 @@
+"""Earth-fixed trajectory and map from the history of body-frame maps (Guerreiro et al.
+2013, sections I and V, Fig. 8; their ref. [22] is not in the shared papers).
+
+The closed-form rigid alignment (Kabsch 1976; Umeyama 1991 without scale) of the
+landmark sets the filter holds at two consecutive scan times gives the vehicle's motion
+between them: if ``p_{k-1} = R p_k + t`` for every landmark seen in both snapshots, the
+body frame at k sits at rotation ``R`` and position ``t`` in the body frame at k-1.
+Composing these increments from the start pose (the dataset's stated initial pose, or the
+identity) yields the Earth-frame trajectory; the Earth-frame map is the current body-frame
+map carried through the current pose. Only the filter's estimates go in, never the truth.
+Between snapshots with too few common landmarks the increment falls back on the filter's
+own motion estimate (integrated ``omega_m - b_hat`` and ``v_hat``) so that the trajectory
+never stops.
+
+This is a *derived* estimate: its covariance is not propagated (exported as None).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def weighted_rigid_alignment(source: np.ndarray, target: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation ``R`` (d, d) and translation ``t`` (d,) minimising ``sum w_i |R s_i + t - y_i|^2``.
+
+    Kabsch/Umeyama closed form: centre both sets on their weighted centroids, SVD of the
+    weighted cross-covariance, a sign fix so that ``det R = +1`` (no reflection).
+
+    Args:
+        source: (n, d) points ``s_i``; target: (n, d) points ``y_i``; weights: (n,) >= 0.
+    """
+    source = np.asarray(source, dtype=float)
+    target = np.asarray(target, dtype=float)
+    weights = np.ones(len(source)) if weights is None else np.asarray(weights, dtype=float)
+    total = weights.sum()
+    mean_source = weights @ source / total
+    mean_target = weights @ target / total
+    cross = ((target - mean_target) * weights[:, None]).T @ (source - mean_source)
+    u, _, vt = np.linalg.svd(cross)
+    fix = np.eye(source.shape[1])
+    fix[-1, -1] = np.sign(np.linalg.det(u @ vt)) or 1.0
+    rotation = u @ fix @ vt
+    return rotation, mean_target - rotation @ mean_source
+
+
+def _well_spread(points: np.ndarray, minimum_spread_m: float) -> bool:
+    """Enough geometry to fix a rotation: 2-D two distinct points, 3-D three non-collinear."""
+    centred = points - points.mean(axis=0)
+    singular = np.linalg.svd(centred, compute_uv=False)
+    needed = points.shape[1] - 1  # 2-D: one direction; 3-D: two
+    return len(points) > needed and singular[needed - 1] > minimum_spread_m
+
+
+class EarthFrameTracker:
+    """Accumulates the Earth-frame pose from consecutive body-frame maps.
+
+    Attributes:
+        rotation: (d, d) body-to-Earth rotation now; position: (d,) body origin in Earth [m].
+        aligned_steps / fallback_steps: how many increments came from the alignment / from
+            the filter's motion estimate.
+    """
+
+    def __init__(self, dimension: int, rotation: np.ndarray, position: np.ndarray, minimum_spread_m: float = 0.5) -> None:
+        self.dimension = dimension
+        self.rotation = np.array(rotation, dtype=float)
+        self.position = np.array(position, dtype=float)
+        self.minimum_spread_m = minimum_spread_m
+        self._previous: dict[int, tuple[np.ndarray, float]] = {}
+        self.aligned_steps = 0
+        self.fallback_steps = 0
+
+    def step(
+        self,
+        ids: np.ndarray,
+        positions: np.ndarray,
+        covariances: np.ndarray,
+        fallback_rotation: np.ndarray,
+        fallback_translation: np.ndarray,
+    ) -> None:
+        """Advance to the new snapshot.
+
+        Args:
+            ids: (L,) map ids; positions: (L, d) body-frame positions now; covariances: (L, d, d).
+            fallback_rotation, fallback_translation: the filter's own estimate of the motion
+                since the previous snapshot (body k in body k-1), used when the maps share too
+                few landmarks.
+        """
+        weights_now = 1.0 / np.maximum(np.trace(covariances, axis1=1, axis2=2), 1e-12) if len(ids) else np.zeros(0)
+        common = [k for k, landmark_id in enumerate(ids) if int(landmark_id) in self._previous]
+        increment = None
+        if common:
+            current = positions[common]
+            previous = np.stack([self._previous[int(ids[k])][0] for k in common])
+            weights = np.array([1.0 / (1.0 / weights_now[k] + 1.0 / self._previous[int(ids[k])][1]) for k in common])
+            if _well_spread(current, self.minimum_spread_m):
+                increment = weighted_rigid_alignment(current, previous, weights)
+        if increment is None:
+            increment = (fallback_rotation, fallback_translation)
+            self.fallback_steps += 1
+        else:
+            self.aligned_steps += 1
+        rotation, translation = increment
+        self.position = self.position + self.rotation @ translation
+        self.rotation = self.rotation @ rotation
+        # Re-orthonormalise against round-off accumulated over thousands of products.
+        u, _, vt = np.linalg.svd(self.rotation)
+        self.rotation = u @ vt
+        self._previous = {int(i): (p.copy(), w) for i, p, w in zip(ids, positions, weights_now)}
+
+    def to_earth(self, positions: np.ndarray) -> np.ndarray:
+        """Body-frame points (L, d) in the Earth frame now: ``rho = R p + r``."""
+        return positions @ self.rotation.T + self.position
