@@ -44,6 +44,7 @@ from smoothers.landmark_factors import (
     check_measurement_covariance,
     landmark_prior,
 )
+from smoothers.odometry_factors import RelativePoseAccumulator
 from smoothers.planar_graph import PlanarMotion
 
 
@@ -70,6 +71,7 @@ class SmootherConfig(BaseModel):
     association: Literal["auto", "ids", "jcbb"] = Field("auto", description="auto: ids when scans carry them, else JCBB")
     gate_probability: float = Field(0.999, gt=0, lt=1, description="chi-square gate probability of JCBB")
     use_gps: bool = Field(True, description="add GPS position factors when the sequence has GPS fixes")
+    use_odometry: bool = Field(True, description="3-D: add relative-pose factors from 6-D odometry (lidar) when the sequence has it")
     relinearize_threshold: float = Field(0.05, gt=0, description="iSAM2 relinearisation threshold")
     relinearize_skip: int = Field(1, ge=1, description="iSAM2 relinearise every k updates")
     extra_iterations: int = Field(0, ge=0, description="extra iSAM2 update() calls per keyframe")
@@ -110,6 +112,7 @@ class KeyframeSmoother:
     sensor_options: ClassVar[tuple[frozenset[Sensor], ...]] = (
         frozenset({Sensor.IMU, Sensor.LANDMARKS}),
         frozenset({Sensor.IMU, Sensor.GPS}),
+        frozenset({Sensor.IMU, Sensor.ODOMETRY}),
         frozenset({Sensor.ODOMETRY, Sensor.LANDMARKS}),
         frozenset({Sensor.GYRO, Sensor.LANDMARKS}),
     )
@@ -142,6 +145,7 @@ class KeyframeSmoother:
         self.estimate_values = gtsam.Values()
         self.causal_covariances = True
         self.has_gps = Sensor.GPS in sequence.sensors and config.use_gps
+        self.odometry_3d = RelativePoseAccumulator() if self.dimension == 3 and config.use_odometry and Sensor.ODOMETRY in sequence.sensors else None
         graph, values = self.motion.initial(self.start, self.priors)
         self.pending_graph = graph
         self.pending_values = values
@@ -257,6 +261,11 @@ class KeyframeSmoother:
             self._open_group(t).scans.append(measurement)
         elif isinstance(measurement, GpsFix) and self.has_gps:
             self._open_group(t).fixes.append(measurement)
+        elif isinstance(measurement, Odometry) and self.odometry_3d is not None and t > self.start.t:
+            # A relative pose ends at a state: it opens a keyframe at its own time.
+            self.odometry_3d.add(measurement)
+            if measurement.relative_pose is not None:
+                self._open_group(t)
 
     def _open_group(self, t: float) -> _Group:
         if self.group is None:
@@ -278,6 +287,11 @@ class KeyframeSmoother:
             for key in self.motion.keys(k):
                 self.pending_times[key] = t
             self.keyframe_t.append(t)
+            if self.odometry_3d is not None:
+                factor = self.odometry_3d.factor(self.motion.pose_key(k - 1), self.motion.pose_key(k))
+                if factor is not None:
+                    self.pending_graph.add(factor)
+                self.odometry_3d.start()
         for fix in group.fixes:
             self._add_gps(k, fix)
         for scan in group.scans:
