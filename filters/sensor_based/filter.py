@@ -41,6 +41,7 @@ from filters.association import associate_jcbb, chi2_gate, individual_compatibil
 from filters.sensor_based.dynamics import ProcessNoise, propagate, rate_dimension, skew_rate
 from filters.sensor_based.earth_frame import EarthFrameTracker
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
+from filters.sensor_based.loop_closing import LoopClosurePolicy, constraint_update, find_loop_closure
 from filters.sensor_based.state import FilterState
 from filters.sensor_based.update import kalman_update
 
@@ -102,6 +103,10 @@ class SensorBasedConfig(BaseModel):
     min_observations: int = Field(3, ge=1, description="fewer sightings than this by probation_s: deleted")
     probation_s: float = Field(3.0, ge=0, description="age at which min_observations is checked [s]")
     max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
+    loop_closing: bool = Field(True, description="search for loop closures between the current and old landmark sets (IV-C)")
+    loop_old_after_s: float = Field(60.0, gt=0, description="landmarks unseen for longer than this form the old set I_old [s]")
+    loop_min_pairs: int = Field(3, ge=1, description="jointly compatible pairs needed to close a loop")
+    loop_every_s: float = Field(2.0, gt=0, description="how often to search for a loop closure [s]")
     earth_frame: bool = Field(
         True, description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose"
     )
@@ -163,6 +168,15 @@ class SensorBasedSlam:
             start_rotation = rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
             start_position = np.asarray(start.position, dtype=float)
         self.earth = EarthFrameTracker(d, start_rotation, start_position) if config.earth_frame else None
+        self.loop_policy = LoopClosurePolicy(
+            current_window_s=config.association_window_s,
+            old_after_s=max(config.loop_old_after_s, config.association_window_s),
+            min_pairs=config.loop_min_pairs,
+            every_s=config.loop_every_s,
+            gate_probability=config.gate_probability,
+            max_nodes=config.max_jcbb_nodes,
+        )
+        self._last_loop_search = -np.inf
         self._motion_rotation = np.eye(d)  # the filter's own motion since the last scan (fallback)
         self._motion_translation = np.zeros(d)
         self.t: float | None = None if start is None else float(start.t)
@@ -326,6 +340,9 @@ class SensorBasedSlam:
             state.remove_landmarks(doomed)
             self.manager.removed(doomed)
             self.true_to_map = {key: value for key, value in self.true_to_map.items() if value not in set(doomed)}
+        if self.config.loop_closing and t - self._last_loop_search >= self.loop_policy.every_s:
+            self._last_loop_search = t
+            self._close_loops(t)
         self.scan_count += 1
         self.recorder.landmark_count(t, len(state.landmark_ids()))
         self.recorder.extra("visible_landmarks", float(len(seen_ids)))
@@ -338,6 +355,40 @@ class SensorBasedSlam:
             self._record_pose(t)
         if self.scan_count % self.config.snapshot_every == 0:
             self.recorder.landmarks(self.landmark_map(t))
+
+    def _close_loops(self, t: float) -> None:
+        """Section IV-C: fuse current landmarks with their old duplicates; keep the old id."""
+        state = self.state
+        ids, positions, joint = state.landmark_positions()
+        if len(ids) < 2:
+            return
+        ages = np.array([t - self.manager.records[int(i)].last_seen_t for i in ids])
+        current = np.flatnonzero(ages <= self.loop_policy.current_window_s)
+        old = np.flatnonzero(ages > self.loop_policy.old_after_s)
+        pairs = find_loop_closure(positions, joint, current, old, self.loop_policy)
+        if not pairs:
+            return
+        features = state.position_features()
+        first = state.state_indices(features[[i for i, _ in pairs]])
+        second = state.state_indices(features[[j for _, j in pairs]])
+        state.x, state.covariance = constraint_update(state.x, state.covariance, first, second)
+        fused = []
+        for current_index, old_index in pairs:
+            kept, removed = int(ids[old_index]), int(ids[current_index])
+            kept_record, removed_record = self.manager.records[kept], self.manager.records[removed]
+            kept_record.last_seen_t = max(kept_record.last_seen_t, removed_record.last_seen_t)
+            kept_record.observations += removed_record.observations
+            kept_record.missed_in_view = 0
+            kept_feature, removed_feature = features[old_index], features[current_index]
+            if state.visible[removed_feature]:
+                state.visible[kept_feature] = True
+                state.measured[kept_feature] = state.measured[removed_feature]
+            self.true_to_map = {key: (kept if value == removed else value) for key, value in self.true_to_map.items()}
+            fused.append([kept, removed])
+        removed_ids = [removed for _, removed in fused]
+        state.remove_landmarks(removed_ids)
+        self.manager.removed(removed_ids)
+        self.recorder.event(t, "loop_closure", pairs=fused)
 
     def _distinct(self, points: np.ndarray, covs: np.ndarray, candidates: list[int]) -> list[int]:
         """Drop measurements compatible with an earlier one of the same list (duplicate points)."""

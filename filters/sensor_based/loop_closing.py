@@ -1,0 +1,106 @@
+"""Basic loop closing of the sensor-based filter (Guerreiro et al. 2013, section IV-C).
+
+The state landmarks are split by the time since each was last seen:
+
+- ``I_cur``: seen within the association window (the only ones the scan association uses),
+- ``I_gap``: older than that but younger than ``old_after_s`` (used by nothing),
+- ``I_old``: older still.
+
+Revisiting an area therefore creates duplicates in ``I_cur`` of landmarks in ``I_old``.
+Periodically, JCBB (``filters.association``) is run between the two sets with the
+noise-free "measurement" ``z_ij = x_i - x_j = 0`` (``Theta_ij = 0``): innovation
+``nu_ij = -(x_i - x_j)``, covariance ``H_ij Sigma H_ij^T`` including the cross-covariance of
+the two sets (the paper prints ``H Sigma H`` without the transpose, a typo). If at least
+``min_pairs`` pairs are jointly compatible, the standard Kalman update with that constraint
+makes each pair equal and fully correlated, and one of each pair is removed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from filters.association import associate_jcbb
+
+
+@dataclass(frozen=True)
+class LoopClosurePolicy:
+    """Thresholds of the loop-closing search.
+
+    Attributes:
+        current_window_s: age (since last seen) of the current set I_cur [s].
+        old_after_s: landmarks unseen for longer than this form I_old [s].
+        min_pairs: jointly compatible pairs needed to close a loop.
+        every_s: how often to search [s].
+        gate_probability: chi-square gate of the JCBB search.
+        max_nodes: node cap of that search.
+    """
+
+    current_window_s: float = 20.0
+    old_after_s: float = 60.0
+    min_pairs: int = 3
+    every_s: float = 2.0
+    gate_probability: float = 0.99
+    max_nodes: int = 20_000
+
+
+def find_loop_closure(
+    positions: np.ndarray,
+    joint_covariance: np.ndarray,
+    current: np.ndarray,
+    old: np.ndarray,
+    policy: LoopClosurePolicy,
+) -> list[tuple[int, int]]:
+    """Jointly compatible (current, old) landmark pairs, as indices into ``positions``.
+
+    Args:
+        positions: (L, d) body-frame positions of all state landmarks.
+        joint_covariance: (L*d, L*d) their joint covariance.
+        current, old: index arrays into ``positions`` (disjoint).
+
+    Returns:
+        [] unless at least ``policy.min_pairs`` pairs are found.
+    """
+    if len(current) == 0 or len(old) == 0:
+        return []
+    d = positions.shape[1]
+
+    def rows(indices: np.ndarray) -> np.ndarray:
+        return (indices[:, None] * d + np.arange(d)[None, :]).ravel()
+
+    cur_rows, old_rows = rows(current), rows(old)
+    result = associate_jcbb(
+        positions[current],
+        joint_covariance[np.ix_(cur_rows, cur_rows)],
+        positions[old],
+        joint_covariance[np.ix_(old_rows, old_rows)],
+        cross_cov=joint_covariance[np.ix_(cur_rows, old_rows)],
+        gate_probability=policy.gate_probability,
+        max_nodes=policy.max_nodes,
+    )
+    if result.pairs < policy.min_pairs:
+        return []
+    return [(int(current[j]), int(old[i])) for j, i in enumerate(result.assignments) if i >= 0]
+
+
+def constraint_update(
+    x: np.ndarray, covariance: np.ndarray, first_indices: np.ndarray, second_indices: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update with the noise-free constraint ``x[first] - x[second] = 0`` (section IV-C).
+
+    ``H = [.. I .. -I ..]``, ``Theta = 0``; Joseph form ``P - K HP - (K HP)^T + K S K^T``
+    with ``S = H P H^T`` (a tiny jitter keeps it invertible when both are already equal).
+
+    Args:
+        x: (n,); covariance: (n, n); first_indices, second_indices: (m,) state indices.
+    """
+    hp = covariance[first_indices] - covariance[second_indices]
+    s = hp[:, first_indices] - hp[:, second_indices]
+    s = 0.5 * (s + s.T) + 1e-12 * np.eye(len(first_indices))
+    gain = np.linalg.solve(s, hp).T
+    innovation = -(x[first_indices] - x[second_indices])
+    x_post = x + gain @ innovation
+    khp = gain @ hp
+    post = covariance - khp - khp.T + gain @ s @ gain.T
+    return x_post, 0.5 * (post + post.T)
