@@ -105,7 +105,7 @@ class SensorBasedConfig(BaseModel):
     max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
     loop_closing: bool = Field(True, description="search for loop closures between the current and old landmark sets (IV-C)")
     loop_old_after_s: float = Field(60.0, gt=0, description="landmarks unseen for longer than this form the old set I_old [s]")
-    loop_min_pairs: int = Field(3, ge=1, description="jointly compatible pairs needed to close a loop")
+    loop_min_pairs: int = Field(5, ge=1, description="jointly compatible pairs needed to close a loop (3-4 let one-niche-off matches through on sim:guerreiro-loop)")
     loop_every_s: float = Field(2.0, gt=0, description="how often to search for a loop closure [s]")
     earth_frame: bool = Field(
         True, description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose"
