@@ -5,7 +5,14 @@ landmarks (optionally with line directions); inputs = rate gyro (``GyroSample``,
 gyro of an ``ImuSample``: the accelerometer is unused) and ``LandmarkScan`` (body-frame
 points). Prediction at every gyro sample (``dynamics.propagate``, eq. (10)), association by
 JCBB (``filters.association``) or by the scan's ids, Kalman update (``update``), landmark
-management (``landmark_management``).
+management (``landmark_management``), loop closing between the current and old landmark
+sets (``loop_closing``, section IV-C) and the Earth-frame trajectory derived from the map
+history (``earth_frame``).
+
+Association uses only the current set I_cur (landmarks seen within
+``association_window_s``), as the paper does; an unassociated measurement starts a new
+landmark only when it lies outside every current landmark's gate even at
+``new_landmark_gate_probability`` (otherwise it is ambiguous and recorded as rejected).
 
 Multirate: the paper assumes synchronised gyro and laser; here ``A(t, y)`` holds each
 visible feature's last measured value between scans (stale by at most one scan period;
@@ -18,9 +25,17 @@ paper and a corner's ``omega_dot ~ 0.1 rad/s^2`` is a bias-sized error of 5e-3 r
 ``"hold"`` gives the literal scheme. A scan between gyro samples is reached with the held
 rate; the rest of that interval uses the average once the next sample arrives.
 
-Exported blocks (DESIGN.md): ``velocity`` (body frame), ``gyro_bias`` and ``landmarks``
-snapshots (body frame, the filter's own map ids), after every scan. There is no world pose
-in this estimator's causal history (robocentric).
+Exported (DESIGN.md): ``velocity`` (body frame), ``gyro_bias`` and ``landmarks`` snapshots
+(body frame, the filter's own map ids) after every scan; ``pose`` is the Earth-frame
+trajectory *derived* from consecutive body-frame maps (no covariance; ``earth_frame=false``
+turns it off); extras ``vehicle_t``/``vehicle_state``/``vehicle_covariance`` carry the joint
+[v, b] block for the vehicle NEES. NIS: one value per associated landmark (eq. (11)),
+dof = its block size.
+
+Measurement noise: the filter uses each scan's stated covariances. (The simulator gives
+the first-order polar-to-Cartesian ``J diag(sigma_rho^2, sigma_alpha^2) J^T``; the paper's
+printed ``sigma_rho^2 M_alpha + sigma_alpha^2 dM_alpha/dalpha`` is not a covariance: its
+second term is indefinite and lacks the rho^2 factor.)
 """
 
 from __future__ import annotations
