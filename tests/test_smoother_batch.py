@@ -20,12 +20,12 @@ def _run(estimator_class, config, sequence):
 
 @pytest.mark.slow
 def test_batch_pose_nees_inside_95_percent_bounds_on_shortened_aghili_rover():
-    """20 seeds of a 5 s sim:aghili-rover with 3 anchors: the averaged pose NEES of the
+    """20 seeds of a 4 s sim:aghili-rover with 3 anchors: the averaged pose NEES of the
     batch smoother's keyframes lies inside the two-sided 95 % chi-square bounds for at
     least 80 % of the keyframes."""
     runs = []
     for seed in range(1, 21):
-        sequence = load_dataset("sim:aghili-rover", seed, {"duration_s": "5"})
+        sequence = load_dataset("sim:aghili-rover", seed, {"duration_s": "4"})
         _, estimate = _run(SmootherBatch, SmootherBatch.Config(anchors=3), sequence)
         _, errors, valid = pose_error_series(estimate.smoothed.pose, sequence.ground_truth)
         runs.append(nees(errors, estimate.smoothed.pose.covariances[valid]))
@@ -34,10 +34,10 @@ def test_batch_pose_nees_inside_95_percent_bounds_on_shortened_aghili_rover():
 
 
 def test_batch_started_from_the_incremental_pass_is_not_worse_than_from_dead_reckoning():
-    """Victoria Park (first 1,500 steps): LM from dead reckoning needs many iterations and
+    """Victoria Park (first 800 steps): LM from dead reckoning needs many iterations and
     ends at a higher (or equal) graph error than LM from the incremental solution, which
     starts next to its optimum."""
-    sequence = load_dataset("victoria-park", 0, {"max_steps": "1500"})
+    sequence = load_dataset("victoria-park", 0, {"max_steps": "800"})
     errors = {}
     for guess in ("incremental", "dead-reckoning"):
         estimator, estimate = _run(SmootherBatch, SmootherBatch.Config(initial_guess=guess), sequence)
