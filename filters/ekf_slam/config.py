@@ -33,6 +33,9 @@ class EkfSlamConfig(BaseModel):
     rotate_velocity_with_gyro: bool = Field(
         True, description="gyro-driven model: world velocity turns with the body (constant body-frame velocity); false: constant world velocity"
     )
+    gyro_interval_rate: Literal["average", "latest"] = Field(
+        "average", description="rate over a gyro interval: mean of its two samples (instantaneous samples, the simulator's convention) or the later sample (interval averages)"
+    )
     estimate_gyro_bias: bool = Field(True, description="gyro-driven model: gyro bias in the state")
     gyro_noise_density: float | None = Field(None, ge=0, description="[rad/s/sqrt(Hz)]; None: the dataset's NoiseSpec (else 1e-3)")
     gyro_bias_walk: float | None = Field(None, ge=0, description="[rad/s^2/sqrt(Hz)]; None: the dataset's NoiseSpec (else 1e-5)")

@@ -107,6 +107,7 @@ class EkfSlam:
         self.pending_record = True
         self.gaps = 0
         self.association_modes: set[str] = set()
+        self.last_rate: np.ndarray | None = None
 
     # ------------------------------------------------------------------ set-up
     @staticmethod
@@ -161,8 +162,12 @@ class EkfSlam:
             rate = np.asarray(rate, float).ravel()
             if rate.shape != (self.layout.rotation_size,) or not np.all(np.isfinite(rate)):
                 raise InputError(f"gyro rate at t={measurement.t:.6f} s must be {self.layout.rotation_size} finite values, got {rate}")
+            interval_rate = rate
+            if self.config.gyro_interval_rate == "average" and self.last_rate is not None:
+                interval_rate = 0.5 * (self.last_rate + rate)  # trapezoid of instantaneous samples
+            self.last_rate = rate
             new, transition, process = predict_gyro_cv(
-                self.vehicle, self.layout, rate, max(dt, 0.0), self.gyro_noise, self.config.rotate_velocity_with_gyro
+                self.vehicle, self.layout, interval_rate, max(dt, 0.0), self.gyro_noise, self.config.rotate_velocity_with_gyro
             )
         if dt > self.config.max_gap_s:
             # The input says nothing reliable about an unobserved stretch: widen pose uncertainty.

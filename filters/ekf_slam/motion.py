@@ -8,11 +8,12 @@ Two models:
   ``p' = p + R(theta) u_xy``, ``theta' = theta + u_theta`` (the standard EKF-SLAM
   prediction, Bailey et al. 2006 section II).
 - ``predict_gyro_cv``: gyro-driven constant velocity (2-D and 3-D): ``R' = R Exp((w_m - b) dt)``,
-  ``p' = p + v dt``, world velocity ``v' = M v`` with ``M = R' R^T`` (the world velocity turns
+  world velocity ``v' = M v`` with ``M = R' R^T`` (the world velocity turns
   with the body, i.e. the body-frame velocity is constant: the same motion assumption as
   the sensor-based filter) or ``M = I`` (``rotate_velocity=False``: plain world-frame
-  constant velocity), plus white acceleration noise (random-walk velocity) and a
-  random-walk gyro bias (measured = true + bias).
+  constant velocity), ``p' = p + (v + v') dt / 2`` (second order on an arc), plus white
+  acceleration noise (random-walk velocity) and a random-walk gyro bias (measured = true
+  + bias). The caller passes the rate over the interval (e.g. the mean of its two samples).
 
 Error conventions: position and velocity errors are world-frame additive; the 2-D heading
 error is additive; the 3-D rotation error is world-frame (left): ``R_true = Exp(dphi) R``.
@@ -126,8 +127,11 @@ def predict_gyro_cv(
             rate_jacobian[layout.velocity, :] = -new_matrix @ skew(rotation.T @ velocity) * dt
         new_rotation = new_matrix
     if layout.velocity is not None:
-        transition[layout.position, layout.velocity] = np.eye(d) * dt
         transition[layout.velocity, layout.velocity] = turn
+        # p' = p + (v + v') dt / 2: the position inherits half of every velocity sensitivity
+        transition[layout.position, layout.velocity] = 0.5 * dt * (np.eye(d) + turn)
+        transition[layout.position, layout.rotation] = 0.5 * dt * transition[layout.velocity, layout.rotation]
+        rate_jacobian[layout.position, :] = 0.5 * dt * rate_jacobian[layout.velocity, :]
     if layout.gyro_bias is not None:
         transition[:, layout.gyro_bias] += -rate_jacobian
     process = rate_jacobian @ rate_jacobian.T * (noise.gyro_density**2 / max(dt, 1e-12)) if dt > 0 else np.zeros_like(transition)
@@ -140,7 +144,7 @@ def predict_gyro_cv(
     if layout.gyro_bias is not None:
         process[layout.gyro_bias, layout.gyro_bias] += np.eye(layout.rotation_size) * noise.bias_walk**2 * dt
     new = VehicleMean(
-        position=mean.position + velocity * dt,
+        position=mean.position + 0.5 * (velocity + new_velocity) * dt,
         rotation=new_rotation,
         velocity=new_velocity if mean.velocity is not None else None,
         gyro_bias=None if mean.gyro_bias is None else mean.gyro_bias.copy(),
