@@ -379,3 +379,13 @@ def test_utias_robot1_first_200_s_with_ids() -> None:
     assert metrics["association_precision"] == 1.0
     assert metrics["ate_rmse_m"] < 0.5  # dead reckoning drifts by metres
     assert metrics["landmarks_mapped"] >= 10
+
+
+def test_scan_between_motion_samples_does_not_shorten_the_next_interval() -> None:
+    sequence = planar_world(ids=True)
+    estimator = EkfSlam(EkfSlamConfig(), sequence)
+    estimator.process(Odometry(t=0.1, covariance=np.eye(2) * 1e-4, velocity=np.array([1.0, 0.0])))
+    estimator.process(LandmarkScan(t=0.15, points=np.array([[2.0, 0.0]]), covariances=np.eye(2)[None] * 0.01, ids=np.array([0])))
+    estimator.process(Odometry(t=0.2, covariance=np.eye(2) * 1e-4, velocity=np.array([1.0, 0.0])))
+    # 0.1 m per 0.1 s interval, from x = 0 at t = 0
+    assert estimator.vehicle.position[0] == pytest.approx(0.2)

@@ -8,7 +8,9 @@ al. 2001):
   odometry (relative poses, or (v, omega) turned into ``(v dt, 0, omega dt)``) or, on
   gyro-only / IMU data, the gyro-driven constant-velocity model (``motion.predict_gyro_cv``;
   the IMU's accelerometer is not used). Only the vehicle rows and columns change:
-  ``P_vv <- F P_vv F^T + Q``, ``P_vl <- F P_vl``.
+  ``P_vv <- F P_vv F^T + Q``, ``P_vl <- F P_vl``. A scan is applied to the vehicle as
+  predicted at the last motion sample (sources emit the motion sample of a scan's time
+  first); the next motion sample then covers the whole interval since the previous one.
 - *Association* by the scan's ids when it has them (a sighting whose NIS exceeds the
   ``id_gate_probability`` quantile is rejected), else JCBB from ``filters.association``
   on the landmarks individually compatible with some sighting (their joint predicted
@@ -102,6 +104,8 @@ class EkfSlam:
         self.source_index: dict[int, int] = {}  # source id -> map index (id association)
         self.next_id = 0
         self.t = float(start.t)
+        # time of the last motion input: a scan between motion samples moves ``t`` but not this
+        self.motion_t = float(start.t)
         self.recorder = EstimateRecorder(d)
         self.last_snapshot_t = -np.inf
         self.pending_record = True
@@ -148,7 +152,7 @@ class EkfSlam:
             self._motion(measurement)
 
     def _motion(self, measurement: Measurement) -> None:
-        dt = float(measurement.t) - self.t
+        dt = float(measurement.t) - self.motion_t
         if dt > self.config.max_gap_s:
             self.gaps += 1
             self.recorder.event(measurement.t, "motion_gap", gap_s=dt, input=self.input.value)
@@ -175,6 +179,7 @@ class EkfSlam:
             process[self.layout.position, self.layout.position] += np.eye(self.dimension) * (self.config.gap_speed_m_s * dt) ** 2
             process[self.layout.rotation, self.layout.rotation] += np.eye(self.layout.rotation_size) * (self.config.gap_rate_rad_s * dt) ** 2
         self._propagate(new, transition, process)
+        self.motion_t = float(measurement.t)
         self.t = max(self.t, float(measurement.t))
         self.pending_record = True
 
