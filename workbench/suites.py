@@ -230,6 +230,23 @@ def get_suite(name: str) -> Suite:
         raise InputError(f"unknown suite '{name}' (known: {', '.join(SUITES)})") from None
 
 
+def restrict(suite: Suite, datasets: list[str] | None = None, estimators: list[str] | None = None) -> Suite:
+    """The suite with only the named datasets (name or label) and estimators (name or
+    label); ``InputError`` for a name the suite does not have."""
+    from dataclasses import replace
+
+    def keep(specs: tuple, wanted: list[str] | None, kind: str) -> tuple:
+        if not wanted:
+            return specs
+        known = {spec.name for spec in specs} | {spec.title for spec in specs}
+        unknown = [name for name in wanted if name not in known]
+        if unknown:
+            raise InputError(f"suite '{suite.name}' has no {kind} {', '.join(unknown)} (it has: {', '.join(spec.title for spec in specs)})")
+        return tuple(spec for spec in specs if spec.name in wanted or spec.title in wanted)
+
+    return replace(suite, datasets=keep(suite.datasets, datasets, "dataset"), estimators=keep(suite.estimators, estimators, "estimator"))
+
+
 def _resolve_callable(target: str) -> Callable[..., object]:
     import importlib
 

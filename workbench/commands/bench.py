@@ -16,7 +16,7 @@ from typing import Annotated, Optional
 import typer
 
 from datasets.errors import InputError
-from workbench.suites import DEFAULT_SUITE, SUITES, get_suite
+from workbench.suites import DEFAULT_SUITE, SUITES, get_suite, restrict
 
 
 def bench(
@@ -29,16 +29,19 @@ def bench(
     run_plots: bool = False,
     show_progress: bool | None = None,
     report_only: bool = False,
+    datasets: list[str] | None = None,
+    estimators: list[str] | None = None,
 ) -> dict[str, Path]:
     """Run the suite and write tables and plots; returns the written table paths and the
     plots folder (key ``plots``). ``report_only``: run nothing, report the runs on disk
-    (unfinished ones show as missing)."""
+    (unfinished ones show as missing). ``datasets`` / ``estimators``: only these of the
+    suite (names or labels)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from workbench.sweep import make_backend, pending_cells, plan_sweep, run_sweep
     from workbench.tables import write_tables
 
-    suite = get_suite(suite_name)
+    suite = restrict(get_suite(suite_name), datasets, estimators)
     runs = suite.default_runs if runs is None else runs
     out = Path(out).resolve()
     interactive = sys.stderr.isatty() if show_progress is None else show_progress
@@ -102,12 +105,17 @@ def register(app: typer.Typer) -> None:
         plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the comparison figures")] = True,
         run_plots: Annotated[bool, typer.Option("--run-plots", help="also write each run folder's own figures (slower)")] = False,
         report_only: Annotated[bool, typer.Option("--report-only", help="run nothing: table and plots of the runs on disk")] = False,
+        dataset: Annotated[Optional[list[str]], typer.Option("--dataset", help="only this dataset of the suite (repeatable)")] = None,
+        estimator: Annotated[Optional[list[str]], typer.Option("--estimator", help="only this estimator of the suite (repeatable)")] = None,
     ) -> None:
         """Run a benchmark suite: every estimator on every dataset it can run on, N seeds,
         then the comparison table and plots. Re-running resumes."""
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
-        written = bench(suite, runs, out or Path("runs") / suite, scheduler, workers, plots, run_plots, report_only=report_only)
+        written = bench(
+            suite, runs, out or Path("runs") / suite, scheduler, workers, plots, run_plots,
+            report_only=report_only, datasets=dataset, estimators=estimator,
+        )
         typer.echo(written["md"].read_text(), nl=False)
         typer.echo(f"table: {written['md']} (.tex, .csv)")
         if plots:
