@@ -89,6 +89,15 @@ class Isam2Backend:
         except RuntimeError as error:
             raise _explain(error, float("nan"), f"iSAM2 marginal covariance of {gtsam.DefaultKeyFormatter(key)}") from None
 
+    def joint_marginal_covariance(self, keys: list[int]) -> np.ndarray:
+        """Full joint marginal covariance of ``keys``, blocks in the given order."""
+        try:
+            joint = self.isam.jointMarginalCovariance(keys)
+        except RuntimeError as error:
+            raise _explain(error, float("nan"), "iSAM2 joint marginal covariance") from None
+        rows = [np.hstack([joint.at(a, b) for b in keys]) for a in keys]
+        return np.vstack(rows)
+
     def leaving(self, t_new: float) -> list[int]:
         """Keys about to be marginalised by an update at ``t_new``: none for iSAM2."""
         return []

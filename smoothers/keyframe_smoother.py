@@ -14,9 +14,11 @@ inject a timing error), plus, when set, one every k motion samples (e.g. between
 fixes, or to bound the preintegration length).
 
 Association: by the scan's ids when it carries them (and ``association`` is ``auto`` or
-``ids``); otherwise JCBB from ``filters.association`` against the current estimate, with
-predicted-measurement covariance from the latest pose marginal and the candidate
-landmarks' marginals (cross-covariances between them neglected: stated approximation).
+``ids``); otherwise JCBB from ``filters.association`` against the current estimate: the
+keyframe's motion (and GPS) factors are solved first, then the predicted measurements of
+the landmarks within reach get the covariance ``H P H^T`` from the *joint* marginal of the
+new pose and those landmarks (iSAM2; the fixed-lag smoother's Python API has no joint
+marginal, so there the blocks are the individual marginals, correlations neglected).
 """
 
 from __future__ import annotations
@@ -294,6 +296,10 @@ class KeyframeSmoother:
                 self.odometry_3d.start()
         for fix in group.fixes:
             self._add_gps(k, fix)
+        if any(self._needs_jcbb(scan) for scan in group.scans):
+            # Solve the motion (and GPS) factors first, so that JCBB sees this keyframe's
+            # pose with its true marginal and its correlation with the map.
+            self._solve_pending(t)
         for scan in group.scans:
             self._add_scan(k, scan)
         self._update(t)
@@ -308,6 +314,19 @@ class KeyframeSmoother:
                 values.erase(key)
         values.insert(self.pending_values)
         return values
+
+    def _needs_jcbb(self, scan: LandmarkScan) -> bool:
+        return self.config.association == "jcbb" or (self.config.association == "auto" and scan.ids is None)
+
+    def _solve_pending(self, t: float) -> None:
+        """Send the pending factors to the backend without recording a causal state."""
+        self._before_update(t)
+        self.full_graph.push_back(self.pending_graph)
+        self.backend.update(self.pending_graph, self.pending_values, self.pending_times, t)
+        self.pending_graph = gtsam.NonlinearFactorGraph()
+        self.pending_values = gtsam.Values()
+        self.pending_times = {}
+        self.estimate_values = self.backend.estimate()
 
     def _update(self, t: float) -> None:
         self._before_update(t)
@@ -401,7 +420,8 @@ class KeyframeSmoother:
         from filters.association import associate_jcbb
 
         d = self.dimension
-        alive = [lm for lm in self.landmarks.values() if self._key_alive(lm.key)]
+        # Landmarks created by another scan of this same time stamp are not solved yet.
+        alive = [lm for lm in self.landmarks.values() if self.backend.contains(lm.key)]
         if not alive or len(points) == 0:
             return [-1] * len(points)
         positions = np.array([values.atPoint3(lm.key) if d == 3 else values.atPoint2(lm.key) for lm in alive])
@@ -414,16 +434,23 @@ class KeyframeSmoother:
             return [-1] * len(points)
         candidates = [lm for lm, ok in zip(alive, near) if ok]
         predicted = predicted[near]
-        pose_cov = self._pose_covariance_for_association()
-        blocks = np.empty((len(candidates), d, d))
-        for i, (lm, h) in enumerate(zip(candidates, predicted)):
-            landmark_cov = self._landmark_covariance(lm.key)
+        k = len(self.keyframe_t) - 1
+        pose_key = self.motion.pose_key(k)
+        joint = self._joint_covariance([pose_key] + [lm.key for lm in candidates])
+        pose_dof = 6 if d == 3 else 3
+        # Predicted measurement h_i = R^T (rho_i - r): H_i = [dh/dpose, R^T] on (pose, rho_i).
+        jacobian = np.zeros((len(candidates) * d, pose_dof + len(candidates) * d))
+        for i, h in enumerate(predicted):
+            rows = slice(i * d, (i + 1) * d)
             if d == 3:
                 skew = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
-                pose_jacobian = np.hstack([skew, -np.eye(3)])
+                jacobian[rows, :pose_dof] = np.hstack([skew, -np.eye(3)])
             else:
-                pose_jacobian = np.hstack([-np.eye(2), (-np.array([[0.0, -1.0], [1.0, 0.0]]) @ h)[:, None]])
-            blocks[i] = pose_jacobian @ pose_cov @ pose_jacobian.T + rotation.T @ landmark_cov @ rotation
+                jacobian[rows, :pose_dof] = np.hstack([-np.eye(2), (-np.array([[0.0, -1.0], [1.0, 0.0]]) @ h)[:, None]])
+            jacobian[rows, pose_dof + i * d : pose_dof + (i + 1) * d] = rotation.T
+        predicted_cov = jacobian @ joint @ jacobian.T
+        predicted_cov = 0.5 * (predicted_cov + predicted_cov.T)
+        blocks = predicted_cov
         result = associate_jcbb(points, covariances, predicted, blocks, gate_probability=self.config.gate_probability)
         out = []
         for j, index in enumerate(result.assignments):
@@ -436,20 +463,21 @@ class KeyframeSmoother:
                 out.append(-1)
         return out
 
-    def _pose_covariance_for_association(self) -> np.ndarray:
-        k = len(self.keyframe_t) - 1
-        key = self.motion.pose_key(k)
-        if self.backend.contains(key):
-            return self.backend.marginal_covariance(key)
-        # The new keyframe is not solved yet: the previous keyframe's marginal, inflated.
-        previous = self.motion.pose_key(k - 1) if k > 0 else key
-        covariance = self.backend.marginal_covariance(previous) if self.backend.contains(previous) else np.eye(3 if self.dimension == 2 else 6) * 1e-2
-        return covariance * 2.0
-
-    def _landmark_covariance(self, key: int) -> np.ndarray:
-        if self.backend.contains(key):
-            return self.backend.marginal_covariance(key)
-        return np.eye(self.dimension) * 1.0
+    def _joint_covariance(self, keys: list[int]) -> np.ndarray:
+        """Joint marginal covariance of ``keys`` (iSAM2), or block-diagonal marginals
+        (fixed lag, whose Python API has no joint marginal: cross-covariances neglected)."""
+        joint = getattr(self.backend, "joint_marginal_covariance", None)
+        if joint is not None:
+            return joint(keys)
+        blocks = [self.backend.marginal_covariance(key) for key in keys]
+        size = sum(block.shape[0] for block in blocks)
+        full = np.zeros((size, size))
+        offset = 0
+        for block in blocks:
+            n = block.shape[0]
+            full[offset : offset + n, offset : offset + n] = block
+            offset += n
+        return full
 
     # ------------------------------------------------------------------ output
     def _flush(self) -> None:
