@@ -57,6 +57,18 @@ def test_tiny_writes_tables_and_plots(uninterrupted: Path) -> None:
             assert (folder / f"{figure}.png").is_file() and (folder / f"{figure}.pdf").is_file(), f"{dataset}/{figure}"
 
 
+def _group_alive(group: int) -> bool:
+    """Whether any process of the process group still exists (zombies aside)."""
+    for status in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = status.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == group and fields[0] != "Z":  # fields: state, ppid, pgrp, ...
+            return True
+    return False
+
+
 def test_killed_sweep_resumes_without_redoing_runs(uninterrupted: Path, tmp_path: Path) -> None:
     out = tmp_path / "killed"
     command = [sys.executable, "-m", "workbench.cli", "bench", "tiny", "--runs", str(RUNS), "--out", str(out), "--workers", "1", "--no-plots"]
@@ -67,8 +79,16 @@ def test_killed_sweep_resumes_without_redoing_runs(uninterrupted: Path, tmp_path
             assert process.poll() is None, "the sweep ended before any run finished"
             assert time.monotonic() < deadline, "no run finished within 60 s"
             time.sleep(0.02)
+        process.send_signal(signal.SIGKILL)  # the CLI's main process only
+        process.wait()
+        # its worker must notice and exit by itself (then the fork server follows)
+        deadline = time.monotonic() + 15
+        while _group_alive(process.pid):
+            assert time.monotonic() < deadline, "workers outlived the killed sweep"
+            time.sleep(0.1)
     finally:
-        os.killpg(process.pid, signal.SIGKILL)  # the CLI, its fork server and its worker
+        if _group_alive(process.pid):
+            os.killpg(process.pid, signal.SIGKILL)
         process.wait()
     finished = {path: path.stat().st_mtime_ns for path in _metrics_files(out)}
     assert 0 < len(finished) < 4 * RUNS, "the kill should leave the sweep unfinished"

@@ -261,17 +261,28 @@ class Backend(Protocol):
     def close(self) -> None: ...
 
 
-def _die_with_parent() -> None:
-    """Worker initializer: on Linux, ask for SIGKILL when the parent process dies, so that a
-    killed sweep leaves no worker writing into the run folders behind the next one."""
-    try:
-        import ctypes
-        import signal
+def _exit_with_sweep(sweep_pid: int, poll_s: float = 0.5) -> None:
+    """Worker initializer: exit as soon as the sweep's main process is gone.
 
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
+    A killed sweep must leave no worker behind that would go on writing a run folder while
+    the next sweep redoes it. Neither the pool nor the OS does this for us: a worker learns
+    of its pool's death only between tasks, and a fork-server worker's parent is the fork
+    server, which itself waits for its workers (they hold its liveness pipe). So a daemon
+    thread polls the main process and ends the worker with ``os._exit``; every file of a
+    run folder is written atomically, so nothing half-written is left behind."""
+    import threading
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_s)
+            try:
+                os.kill(sweep_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except PermissionError:
+                pass  # exists, owned by someone else (cannot happen for our own parent)
+
+    threading.Thread(target=watch, name="exit-with-sweep", daemon=True).start()
 
 
 class LocalBackend:
@@ -288,7 +299,9 @@ class LocalBackend:
         os.environ.update(_SINGLE_THREAD_ENVIRONMENT)  # inherited by the fork server
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(["workbench.sweep", "workbench.runner", "workbench.monte_carlo"])
-        self._executor = concurrent.futures.ProcessPoolExecutor(self.workers, mp_context=context, initializer=_die_with_parent)
+        self._executor = concurrent.futures.ProcessPoolExecutor(
+            self.workers, mp_context=context, initializer=_exit_with_sweep, initargs=(os.getpid(),)
+        )
 
     def submit(self, function: Callable[..., Any], *args: Any) -> Any:
         return self._executor.submit(function, *args)
