@@ -6,7 +6,8 @@
 2. The 3-D landmark factor: native ``BearingRangeFactor3D`` versus the exact Python
    ``CustomFactor`` (``landmark_factor=cartesian``), same run.
 3. Fixed-lag time per keyframe with 1,000 versus 5,000 keyframes (flat if the window works).
-4. Optionally (``--kitti``) iSAM2 on the whole kitti-imu-gps run, per fifth of the run.
+4. iSAM2 on the whole Victoria Park run (``--parts victoria``).
+5. Optionally (``--kitti``) iSAM2 on the whole kitti-imu-gps run, per fifth of the run.
 
 Usage: ``python benchmarks/bench_smoother.py [--quick] [--kitti]``.
 """
@@ -74,7 +75,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="shorter runs")
     parser.add_argument("--kitti", action="store_true", help="also time the whole kitti-imu-gps run")
-    parser.add_argument("--parts", default="landmarks,factor,lag", help="comma list of: landmarks, factor, lag")
+    parser.add_argument("--parts", default="landmarks,factor,lag", help="comma list of: landmarks, factor, lag, victoria")
     args = parser.parse_args()
     parts = set(args.parts.split(","))
     duration = "5" if args.quick else "10"
@@ -85,8 +86,17 @@ def main() -> None:
         factor_comparison(duration)
     if "lag" in parts:
         fixed_lag_growth(args.quick)
+    if "victoria" in parts:
+        victoria_park()
     if args.kitti:
         kitti_growth()
+
+
+def victoria_park() -> None:
+    """The whole Victoria Park run (planar, odometry + ids): iSAM2 time per keyframe."""
+    print("== iSAM2 on victoria-park (keyframe at every scan)")
+    sequence = load_dataset("victoria-park", 0, {})
+    summary("isam2 victoria-park", timed_run(SmootherIsam2, SmootherIsam2.Config(), sequence))
 
 
 def landmark_scaling(duration: str) -> None:
