@@ -45,13 +45,20 @@ def list_command(verbose: Annotated[bool, typer.Option("--verbose", "-v", help="
     for entry in DATASETS:
         names = entry.examples or ((entry.prefix + (f":{entry.argument}" if entry.argument else "")),)
         for name in names:
-            typer.echo(f"  {name:<34} {entry.summary}")
+            typer.echo(f"  {name:<42} {entry.summary}")
         if verbose:
             for line in entry.describe():
                 typer.echo(f"      {line}")
+    typer.echo("simulate-only scenarios (workbench simulate NAME):")
+    typer.echo(f"  {'lidar-corridor':<42} synthetic lidar bag (ROS 1/ROS 2) of a corridor world, read back as bag:PATH")
+    if verbose:
+        from datasets.synthetic_lidar import describe as describe_lidar_corridor
+
+        for line in describe_lidar_corridor():
+            typer.echo(f"      {line}")
     typer.echo("estimators:")
     for entry in ESTIMATORS:
-        typer.echo(f"  {entry.name:<34} {entry.summary}")
+        typer.echo(f"  {entry.name:<42} {entry.summary}")
         if verbose:
             from datasets.options import describe_model
 
