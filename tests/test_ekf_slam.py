@@ -389,3 +389,23 @@ def test_scan_between_motion_samples_does_not_shorten_the_next_interval() -> Non
     estimator.process(Odometry(t=0.2, covariance=np.eye(2) * 1e-4, velocity=np.array([1.0, 0.0])))
     # 0.1 m per 0.1 s interval, from x = 0 at t = 0
     assert estimator.vehicle.position[0] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(
+    ("dataset", "options", "dof"),
+    [("sim:guerreiro-loop", {"duration_s": "30"}, 2), ("sim:circle", {"duration_s": "15"}, 3)],
+)
+def test_gyro_driven_runs_on_the_simulator_are_accurate_and_consistent(dataset: str, options: dict, dof: int) -> None:
+    from workbench.metrics.summary import compute_metrics
+    from workbench.registry import load_dataset
+    from workbench.runner import run_estimator
+
+    sequence = load_dataset(dataset, 0, options)
+    estimate = run_estimator(EkfSlam, EkfSlamConfig(), sequence)
+    metrics = compute_metrics(estimate, sequence)
+    assert Sensor.IMU in sequence.sensors or Sensor.GYRO in sequence.sensors
+    assert metrics["ate_rmse_m"] < 0.1
+    assert 0.8 * dof < metrics["nis_mean"] < 1.2 * dof
+    pose_dof = 3 if sequence.dimension == 2 else 6
+    assert metrics["nees_pose_mean"] < 2.0 * pose_dof  # a single short run: loose, but catches a broken covariance
+    assert estimate.causal.block(BlockName.VELOCITY).frame == "world"
