@@ -228,6 +228,8 @@ def run_cell(cell: Cell, run_plots: bool = False) -> CellOutcome:
 
     start = time.perf_counter()
     folder = cell.folder
+    if cell.is_finished():  # done meanwhile, e.g. by another sweep into the same folder
+        return CellOutcome(folder, 0.0)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / METRICS_FILE).unlink(missing_ok=True)
     (folder / ERROR_FILE).unlink(missing_ok=True)
