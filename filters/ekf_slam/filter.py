@@ -162,8 +162,12 @@ class EkfSlam:
                 self.vehicle, self.layout, increment, increment_cov * self.config.odometry_noise_scale
             )
         else:
-            rate = measurement.gyro if isinstance(measurement, ImuSample) else measurement.rate  # type: ignore[union-attr]
-            rate = np.asarray(rate, float).ravel()
+            if isinstance(measurement, ImuSample):
+                rate = np.asarray(measurement.gyro, float).ravel()  # the accelerometer is not used
+            elif isinstance(measurement, GyroSample):
+                rate = np.asarray(measurement.rate, float).ravel()
+            else:
+                raise InputError(f"ekf-slam cannot use a {type(measurement).__name__} as motion input (t={measurement.t:.6f} s)")
             if rate.shape != (self.layout.rotation_size,) or not np.all(np.isfinite(rate)):
                 raise InputError(f"gyro rate at t={measurement.t:.6f} s must be {self.layout.rotation_size} finite values, got {rate}")
             interval_rate = rate
