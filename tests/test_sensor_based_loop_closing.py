@@ -85,3 +85,17 @@ def test_earth_frame_trajectory_follows_the_true_circle() -> None:
     assert error[-1] < 0.3  # 15 m driven
     heading_error = np.angle(np.exp(1j * (pose.rotations - a)))
     assert np.max(np.abs(heading_error)) < 0.05
+
+
+def test_ambiguous_constellation_is_not_closed() -> None:
+    # A regular row of old landmarks with a 3 m common uncertainty: the current copies match
+    # it at the true shift and, just as well, one spacing off. Such a loop is rejected.
+    old = np.array([[float(k), 0.0] for k in range(8)])
+    current = old[2:6] + np.array([0.05, 0.0])
+    positions = np.vstack([current, old])
+    joint = 0.01**2 * np.eye(2 * len(positions))
+    joint[8:, 8:] += 9.0 * np.kron(np.ones((8, 8)), np.eye(2))
+    policy = LoopClosurePolicy(min_pairs=3)
+    assert find_loop_closure(positions, joint, np.arange(4), np.arange(4, 12), policy) == []
+    permissive = LoopClosurePolicy(min_pairs=3, unambiguous_only=False)
+    assert len(find_loop_closure(positions, joint, np.arange(4), np.arange(4, 12), permissive)) == 4

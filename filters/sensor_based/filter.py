@@ -122,6 +122,9 @@ class SensorBasedConfig(BaseModel):
     loop_old_after_s: float = Field(60.0, gt=0, description="landmarks unseen for longer than this form the old set I_old [s]")
     loop_min_pairs: int = Field(5, ge=1, description="jointly compatible pairs needed to close a loop (3-4 let one-niche-off matches through on sim:guerreiro-loop)")
     loop_every_s: float = Field(2.0, gt=0, description="how often to search for a loop closure [s]")
+    loop_unambiguous_only: bool = Field(
+        True, description="reject a loop closure when a second, disjoint constellation match of min_pairs pairs exists"
+    )
     earth_frame: bool = Field(
         True, description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose"
     )
@@ -190,6 +193,7 @@ class SensorBasedSlam:
             every_s=config.loop_every_s,
             gate_probability=config.gate_probability,
             max_nodes=config.max_jcbb_nodes,
+            unambiguous_only=config.loop_unambiguous_only,
         )
         self._last_loop_search = -np.inf
         self._motion_rotation = np.eye(d)  # the filter's own motion since the last scan (fallback)

@@ -35,6 +35,10 @@ class LoopClosurePolicy:
         every_s: how often to search [s].
         gate_probability: chi-square gate of the JCBB search.
         max_nodes: node cap of that search.
+        unambiguous_only: reject a closure when, with every pair of the found hypothesis
+            forbidden, JCBB still finds ``min_pairs`` jointly compatible pairs: a second,
+            different constellation match (a shifted one in a regular or dense map, e.g.
+            one door niche off, or Victoria Park's trees) means the loop is ambiguous.
     """
 
     current_window_s: float = 20.0
@@ -43,6 +47,7 @@ class LoopClosurePolicy:
     every_s: float = 2.0
     gate_probability: float = 0.99
     max_nodes: int = 20_000
+    unambiguous_only: bool = True
 
 
 def find_loop_closure(
@@ -81,7 +86,24 @@ def find_loop_closure(
     )
     if result.pairs < policy.min_pairs:
         return []
-    return [(int(current[j]), int(old[i])) for j, i in enumerate(result.assignments) if i >= 0]
+    pairs = [(j, int(i)) for j, i in enumerate(result.assignments) if i >= 0]
+    if policy.unambiguous_only:
+        mask = np.ones((len(current), len(old)), dtype=bool)
+        for j, i in pairs:
+            mask[j, i] = False
+        alternative = associate_jcbb(
+            positions[current],
+            joint_covariance[np.ix_(cur_rows, cur_rows)],
+            positions[old],
+            joint_covariance[np.ix_(old_rows, old_rows)],
+            cross_cov=joint_covariance[np.ix_(cur_rows, old_rows)],
+            gate_probability=policy.gate_probability,
+            max_nodes=policy.max_nodes,
+            candidate_mask=mask,
+        )
+        if alternative.pairs >= policy.min_pairs:
+            return []
+    return [(int(current[j]), int(old[i])) for j, i in pairs]
 
 
 def constraint_update(
