@@ -26,7 +26,7 @@ from workbench.metrics.summary import compute_metrics
 from workbench.registry import load_dataset
 from workbench.runner import run_estimator
 
-WINDOWS = ((0.0, 50.0), (50.0, 100.0), (100.0, 1e9))
+WINDOWS = ((0.0, 50.0), (50.0, 100.0), (100.0, 150.0), (150.0, 1e9))
 
 
 def main(argv: list[str]) -> None:
