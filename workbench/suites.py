@@ -65,6 +65,9 @@ class DatasetSpec:
         left_out: ``(estimator name, reason)`` pairs this suite does not run on this
             dataset although they could (too slow for the suite's budget); the table says
             n/a with the reason.
+        estimator_options: ``(estimator name, --set options)`` pairs that this dataset
+            needs (added after the estimator's own), e.g. anchors from the first
+            observation where the dataset has no surveyed landmarks.
     """
 
     name: str
@@ -73,6 +76,11 @@ class DatasetSpec:
     seeded: bool = True
     generate: str | None = None
     left_out: tuple[tuple[str, str], ...] = ()
+    estimator_options: tuple[tuple[str, Options], ...] = ()
+
+    def options_for(self, estimator: str) -> Options:
+        """The ``--set`` options this dataset adds for ``estimator``."""
+        return tuple(option for name, options in self.estimator_options if name == estimator for option in options)
 
     def left_out_reason(self, estimator: str) -> str | None:
         for name, reason in self.left_out:
@@ -200,6 +208,8 @@ SUITES: dict[str, Suite] = {
                     label="bag:lidar-corridor",
                     seeded=False,
                     generate="workbench.suites:write_corridor_bag",
+                    # no surveyed corners in a bag: Aghili's anchors from their first sighting
+                    estimator_options=(("aghili", (("anchor_source", "first-observation"),)),),
                 ),
             ),
             estimators=ALL_ESTIMATORS,

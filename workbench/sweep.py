@@ -54,13 +54,18 @@ class Cell:
     seed: int
     folder: Path
 
+    @property
+    def overrides(self) -> tuple[tuple[str, str], ...]:
+        """The estimator's ``--set`` options, then those the dataset adds for it."""
+        return self.estimator.overrides + self.dataset.options_for(self.estimator.name)
+
     def request_record(self) -> dict[str, Any]:
         """What defines the run (compared on resume)."""
         return {
             "dataset": self.dataset_name,
             "data_options": dict(self.dataset.options),
             "estimator": self.estimator.name,
-            "overrides": dict(self.estimator.overrides),
+            "overrides": dict(self.overrides),
             "seed": self.seed,
         }
 
@@ -238,7 +243,7 @@ def run_cell(cell: Cell, run_plots: bool = False) -> CellOutcome:
         estimator=cell.estimator.name,
         dataset=cell.dataset_name,
         seed=cell.seed,
-        overrides=cell.estimator.overrides,
+        overrides=cell.overrides,
         data_options=cell.dataset.options,
     )
     try:
