@@ -44,7 +44,11 @@ def test_filter_closes_the_loop_after_losing_sight_of_its_landmarks() -> None:
     # duplicates (the old ones are outside its association window) and loop closing fuses
     # each duplicate with its original.
     sequence = planar_sequence(60.0, (0.2, 0.0), 0.02, LANDMARKS + [8.0, 0.0], seed=1, blank=(10.0, 50.0))
-    config = SensorBasedConfig(association_window_s=3.0, loop_old_after_s=20.0, loop_min_pairs=3, max_missed_in_view=10_000)
+    # 40 s blind at sigma_v = 0.1 leaves the old landmarks metres uncertain: lift the
+    # candidate limit, and check below that with the default limit the loop is not closed.
+    config = SensorBasedConfig(
+        association_window_s=3.0, loop_old_after_s=20.0, loop_min_pairs=3, max_missed_in_view=10_000, loop_max_old_sigma_m=50.0
+    )
     estimator, estimate = run(SensorBasedSlam, config, sequence)
     closures = [event for event in estimate.diagnostics.events if event.kind == "loop_closure"]
     assert closures, "expected a loop closure on the revisit"
@@ -54,6 +58,9 @@ def test_filter_closes_the_loop_after_losing_sight_of_its_landmarks() -> None:
     # created from the same measurement index, so a correct pair is (k, 5 + k).
     assert all(kept < 5 and removed - 5 == kept for kept, removed in fused)
     assert len(estimator.state.landmark_ids()) <= len(LANDMARKS) + 1
+    strict = config.model_copy(update={"loop_max_old_sigma_m": 1.5})
+    _, estimate = run(SensorBasedSlam, strict, sequence)
+    assert not [event for event in estimate.diagnostics.events if event.kind == "loop_closure"]
 
 
 def test_weighted_rigid_alignment_recovers_a_known_motion() -> None:
