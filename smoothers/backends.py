@@ -43,6 +43,27 @@ with relinearisation disabled: fluid relinearisation keeps reaching far back int
 history on that GPS-only graph. Not solved here."""
 
 
+def fetch_values(source, keys: list[int], dimension: int) -> gtsam.Values:
+    """The current estimate of ``keys`` only (O(len(keys)), not O(all variables) as
+    ``calculateEstimate()`` is): typed ``calculateEstimate*`` calls by the key's symbol
+    (x pose, v velocity/planar state, b bias, l landmark)."""
+    values = gtsam.Values()
+    for key in keys:
+        kind = chr(gtsam.Symbol(key).chr())
+        if kind == "x":
+            values.insert(key, source.calculateEstimatePose3(key) if dimension == 3 else source.calculateEstimatePose2(key))
+        elif kind == "v":
+            values.insert(key, np.asarray(source.calculateEstimateVector(key), dtype=float))
+        elif kind == "b":
+            values.insert(key, source.calculateEstimateConstantBias(key))
+        elif kind == "l":
+            point = source.calculateEstimatePoint3(key) if dimension == 3 else source.calculateEstimatePoint2(key)
+            values.insert(key, np.asarray(point, dtype=float))
+        else:
+            raise ValueError(f"unknown variable kind {kind!r}")
+    return values
+
+
 def isam2_params(relinearize_threshold: float, relinearize_skip: int, dimension: int = 3) -> gtsam.ISAM2Params:
     """iSAM2 parameters: QR factorisation (Cholesky fails on the KITTI IMU's tiny bias walk,
     an information ratio of about 1e12), a threshold per variable type."""
@@ -64,6 +85,7 @@ class Isam2Backend:
 
     def __init__(self, relinearize_threshold: float, relinearize_skip: int, extra_iterations: int, dimension: int = 3) -> None:
         self.isam = gtsam.ISAM2(isam2_params(relinearize_threshold, relinearize_skip, dimension))
+        self.dimension = dimension
         self.extra_iterations = extra_iterations
         self.gtsam_seconds = 0.0
 
@@ -82,6 +104,9 @@ class Isam2Backend:
 
     def estimate(self) -> gtsam.Values:
         return self.isam.calculateEstimate()
+
+    def values(self, keys: list[int]) -> gtsam.Values:
+        return fetch_values(self.isam, keys, self.dimension)
 
     def marginal_covariance(self, key: int) -> np.ndarray:
         try:
@@ -111,6 +136,7 @@ class FixedLagBackend:
 
     def __init__(self, lag_s: float, relinearize_threshold: float, relinearize_skip: int, dimension: int = 3) -> None:
         self.lag_s = lag_s
+        self.dimension = dimension
         self.smoother = gtsam.IncrementalFixedLagSmoother(lag_s, isam2_params(relinearize_threshold, relinearize_skip, dimension))
         self.key_times: dict[int, float] = {}
         self.gtsam_seconds = 0.0
@@ -134,6 +160,9 @@ class FixedLagBackend:
 
     def estimate(self) -> gtsam.Values:
         return self.smoother.calculateEstimate()
+
+    def values(self, keys: list[int]) -> gtsam.Values:
+        return fetch_values(self.smoother, keys, self.dimension)
 
     def marginal_covariance(self, key: int) -> np.ndarray:
         try:

@@ -307,7 +307,7 @@ class KeyframeSmoother:
             self.motion.restart(t, self.estimate_values, k)
 
     def _current_values(self) -> gtsam.Values:
-        """Latest estimate, with the not yet committed values layered on top."""
+        """Newest keyframe's estimate, with the not yet committed values layered on top."""
         values = gtsam.Values(self.estimate_values)
         for key in self.pending_values.keys():
             if values.exists(key):
@@ -326,7 +326,7 @@ class KeyframeSmoother:
         self.pending_graph = gtsam.NonlinearFactorGraph()
         self.pending_values = gtsam.Values()
         self.pending_times = {}
-        self.estimate_values = self.backend.estimate()
+        self.estimate_values = self.backend.values(self.motion.keys(len(self.keyframe_t) - 1))
 
     def _update(self, t: float) -> None:
         self._before_update(t)
@@ -335,8 +335,9 @@ class KeyframeSmoother:
         self.pending_graph = gtsam.NonlinearFactorGraph()
         self.pending_values = gtsam.Values()
         self.pending_times = {}
-        self.estimate_values = self.backend.estimate()
         k = len(self.keyframe_t) - 1
+        # Only the newest keyframe's state is needed to go on (the full estimate is O(n)).
+        self.estimate_values = self.backend.values(self.motion.keys(k))
         if self.record_causal:
             self.motion.record(self.recorder, t, self.estimate_values, k, self.backend_marginals() if self.causal_covariances else None)
 
@@ -424,7 +425,8 @@ class KeyframeSmoother:
         alive = [lm for lm in self.landmarks.values() if self.backend.contains(lm.key)]
         if not alive or len(points) == 0:
             return [-1] * len(points)
-        positions = np.array([values.atPoint3(lm.key) if d == 3 else values.atPoint2(lm.key) for lm in alive])
+        current = self.backend.values([lm.key for lm in alive])
+        positions = np.array([current.atPoint3(lm.key) if d == 3 else current.atPoint2(lm.key) for lm in alive])
         rotation = pose.rotation().matrix()
         translation = pose.translation()
         predicted = (positions - translation) @ rotation

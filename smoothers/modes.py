@@ -153,7 +153,7 @@ class SmootherFixedLag(KeyframeSmoother):
         leaving = set(self.backend.leaving(t_new))
         if not leaving:
             return
-        values = self.estimate_values
+        values = self.backend.values(sorted(leaving))
         marginals = self.backend_marginals()
         for k, t in enumerate(self.keyframe_t):
             if k in self.keyframe_exports or self.motion.pose_key(k) not in leaving:
