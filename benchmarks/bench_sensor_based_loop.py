@@ -31,7 +31,7 @@ def main() -> None:
     args = parser.parse_args()
     overrides = {k: yaml_value(v) for k, v in (item.split("=", 1) for item in args.set)}
     sequence = load_scenario("guerreiro-loop", args.seed, dict(item.split("=", 1) for item in args.data))
-    estimator = SensorBasedSlam(SensorBasedConfig(**overrides), sequence)
+    estimator = SensorBasedSlam(SensorBasedConfig(**{"association": "jcbb", **overrides}), sequence)
     start = time.perf_counter()
     for measurement in sequence.measurements():
         estimator.process(measurement)

@@ -25,7 +25,7 @@ def _finite(estimator: SensorBasedSlam) -> bool:
 def test_converges_from_wrong_initial_velocity_and_bias() -> None:
     sequence = planar_sequence(40.0, (0.5, 0.0), 0.05, LANDMARKS, seed=3, gyro_bias=0.01)
     config = SensorBasedConfig(
-        initial_velocity_error_m_s=[0.4, -0.3], initial_velocity_sigma_m_s=0.5, initial_gyro_bias_sigma_rad_s=0.03
+        association="jcbb", initial_velocity_error_m_s=[0.4, -0.3], initial_velocity_sigma_m_s=0.5, initial_gyro_bias_sigma_rad_s=0.03
     )
     _, estimate = run(SensorBasedSlam, config, sequence)
     velocity = estimate.causal.block("velocity")
@@ -43,7 +43,7 @@ def test_converges_from_wrong_initial_velocity_and_bias() -> None:
 
 def test_long_stretch_without_landmarks_keeps_state_finite_and_recovers() -> None:
     sequence = planar_sequence(60.0, (0.3, 0.0), 0.0, LANDMARKS + [6.0, 0.0], seed=4, blank=(10.0, 40.0))
-    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(), sequence)
+    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence)
     assert _finite(estimator)
     velocity = estimate.causal.block("velocity")
     t = velocity.t
@@ -65,7 +65,7 @@ def test_duplicate_points_in_a_scan_create_one_landmark() -> None:
                 covariances=np.concatenate([measurement.covariances, measurement.covariances]),
             )
         doubled.append(measurement)
-    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(), sequence, doubled)
+    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence, doubled)
     assert len(estimator.state.landmark_ids()) == 1
     diagnostics = estimate.diagnostics
     # Every scan: one measurement used, its duplicate recorded as rejected (-1).
@@ -80,7 +80,7 @@ def test_nan_rates_are_skipped_and_reported() -> None:
         GyroSample(t=m.t, rate=np.array([np.nan])) if isinstance(m, GyroSample) and 2.0 < m.t < 3.0 else m
         for m in measurements
     ]
-    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(), sequence, corrupted)
+    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence, corrupted)
     assert _finite(estimator)
     assert estimator.skipped["nan_rate"] > 0
     assert any(event.kind == "skipped_input" for event in estimate.diagnostics.events)
@@ -89,7 +89,7 @@ def test_nan_rates_are_skipped_and_reported() -> None:
 
 def test_nan_points_are_dropped_and_time_going_backwards_is_an_input_error() -> None:
     sequence = planar_sequence(2.0, (0.3, 0.0), 0.0, LANDMARKS, seed=7)
-    estimator = SensorBasedSlam(SensorBasedConfig(), sequence)
+    estimator = SensorBasedSlam(SensorBasedConfig(association="jcbb"), sequence)
     for measurement in sequence.measurements():
         estimator.process(measurement)
     bad = LandmarkScan(t=2.1, points=np.array([[np.nan, 1.0], [3.0, 1.0]]), covariances=np.repeat(np.eye(2)[None] * 0.01, 2, 0))
@@ -138,7 +138,7 @@ def test_jcbb_association_on_the_loop_at_default_noise_beats_a_perfect_map_oracl
     # one range/bearing sigma: even the true map and pose give ~0.85 precision. Ours must
     # not be worse than that bound (it is better: it only considers landmarks in its map).
     sequence = load_scenario("guerreiro-loop", 0, {"duration_s": "15"})
-    _, estimate = run(SensorBasedSlam, SensorBasedConfig(), sequence)
+    _, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence)
     score = score_associations(estimate.diagnostics, sequence.ground_truth.scan_ids)
     assert score.precision >= _oracle_precision(sequence)
     assert score.recall >= 0.85
@@ -146,7 +146,7 @@ def test_jcbb_association_on_the_loop_at_default_noise_beats_a_perfect_map_oracl
 
 def test_jcbb_association_precision_and_recall_at_reduced_noise() -> None:
     sequence = load_scenario("guerreiro-loop", 0, {"duration_s": "15", "noise_scale": "0.25"})
-    _, estimate = run(SensorBasedSlam, SensorBasedConfig(), sequence)
+    _, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence)
     score = score_associations(estimate.diagnostics, sequence.ground_truth.scan_ids)
     assert score.precision >= 0.99
     assert score.recall >= 0.99

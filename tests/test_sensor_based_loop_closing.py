@@ -47,7 +47,7 @@ def test_filter_closes_the_loop_after_losing_sight_of_its_landmarks() -> None:
     # 40 s blind at sigma_v = 0.1 leaves the old landmarks metres uncertain: lift the
     # candidate limit, and check below that with the default limit the loop is not closed.
     config = SensorBasedConfig(
-        association_window_s=3.0, loop_old_after_s=20.0, loop_min_pairs=3, max_missed_in_view=10_000, loop_max_old_sigma_m=50.0
+        association="jcbb", association_window_s=3.0, loop_old_after_s=20.0, loop_min_pairs=3, max_missed_in_view=10_000, loop_max_old_sigma_m=50.0
     )
     estimator, estimate = run(SensorBasedSlam, config, sequence)
     closures = [event for event in estimate.diagnostics.events if event.kind == "loop_closure"]
@@ -82,7 +82,7 @@ def test_weighted_rigid_alignment_recovers_a_known_motion() -> None:
 def test_earth_frame_trajectory_follows_the_true_circle() -> None:
     speed, yaw_rate = 0.5, 0.1
     sequence = planar_sequence(30.0, (speed, 0.0), yaw_rate, LANDMARKS * 2.0, seed=3)
-    _, estimate = run(SensorBasedSlam, SensorBasedConfig(), sequence)
+    _, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence)
     pose = estimate.causal.pose
     assert pose is not None and pose.covariances is None
     t = pose.t

@@ -28,7 +28,7 @@ def _with_extra_point(sequence, at_t: float, point: np.ndarray):
 def test_a_landmark_seen_once_is_deleted_as_intermittent() -> None:
     sequence = planar_sequence(10.0, (0.2, 0.0), 0.0, LANDMARKS, seed=1)
     measurements = _with_extra_point(sequence, 1.0, np.array([[-4.0, 6.0]]))
-    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(probation_s=3.0, min_observations=3), sequence, measurements)
+    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb", probation_s=3.0, min_observations=3), sequence, measurements)
     assert estimator.manager.deleted["intermittent"] == 1
     assert len(estimator.state.landmark_ids()) == len(LANDMARKS)
     counts = estimate.diagnostics.landmark_count

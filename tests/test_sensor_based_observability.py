@@ -27,7 +27,7 @@ BIAS_WALK = {"sigma_gyro_bias_rad_s": 5e-3, "sigma_velocity_m_s": 0.01}
 
 def _vehicle_trace_ratio(sequence, **config) -> tuple[float, float, np.ndarray]:
     """(largest vehicle-covariance eigenvalue at the end / at mid-run, its final value, final velocity)."""
-    _, estimate = run(SensorBasedSlam, SensorBasedConfig(**BIAS_WALK, **config), sequence)
+    _, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb", **BIAS_WALK, **config), sequence)
     t = estimate.diagnostics.extras["vehicle_t"]
     covs = estimate.diagnostics.extras["vehicle_covariance"].reshape(-1, 3, 3)
     traces = np.linalg.eigvalsh(covs)[:, -1]
@@ -67,7 +67,7 @@ def test_single_landmark_at_constant_body_position_is_unobservable() -> None:
     ratio, final_trace, _ = _vehicle_trace_ratio(sequence)
     assert ratio > 1.5, f"vehicle covariance should keep growing, grew only {ratio:.2f}x"
     # The growing direction is c_v = S y c_b: velocity along S y = (-3, 0) traded for bias.
-    _, estimate = run(SensorBasedSlam, SensorBasedConfig(**BIAS_WALK), sequence)
+    _, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb", **BIAS_WALK), sequence)
     cov = estimate.diagnostics.extras["vehicle_covariance"].reshape(-1, 3, 3)[-1]
     eigenvalues, eigenvectors = np.linalg.eigh(cov)
     worst = eigenvectors[:, -1]

@@ -90,7 +90,9 @@ class SensorBasedConfig(BaseModel):
         None, gt=0, description="prior bias std; None: the dataset's stated value (0.05 rad/s if none)"
     )
     association: Literal["jcbb", "ids"] = Field(
-        "jcbb", description="jcbb, or ids (use the scan's ids when it has them; JCBB otherwise)"
+        "ids",
+        description="ids: use the scan's ids when it has them, JCBB otherwise (as every estimator "
+        "here, so `--data ids=false` decides for all); jcbb: always JCBB, ignoring ids",
     )
     gate_probability: float = Field(0.99, gt=0, lt=1, description="chi-square gate probability (individual and joint)")
     new_landmark_gate_probability: float = Field(
