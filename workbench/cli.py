@@ -32,6 +32,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "workbench.commands.metrics",
     "workbench.commands.bench",
     "workbench.commands.bag",
+    "workbench.commands.observability",
 )
 
 SetOption = Annotated[Optional[list[str]], typer.Option("--set", help="estimator option key=value (repeatable)")]
