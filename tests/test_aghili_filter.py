@@ -99,7 +99,10 @@ def test_averaged_pose_nees_is_inside_the_95_percent_bounds() -> None:
 @pytest.mark.xfail(
     strict=True,
     reason="known issue: the adapted R converges (asserted first), but the ATE with the wrong initial "
-    "guess was 2.80 m vs 0.041 m with the true R (seed 3, 60 s): not yet diagnosed",
+    "guess was 2.80 m vs 0.041 m with the true R (seed 3, 60 s). Cause seen: at the end of the "
+    "warm-up (t=2 s) R = W - mean(H P H^T) drops to ~0.05-0.08 m because the landmarks initialised "
+    "with the 10x R carry inflated covariance; the overconfident filter drifts to 8 m at t=10 s and "
+    "recovers by t=20 s, while R reaches 0.21 m at 60 s. Not fixed yet",
 )
 def test_adaptive_r_converges_from_a_tenfold_wrong_guess() -> None:
     """True sigma 0.2 m; initial R 10x too large. Adapted R within 25% of truth; ATE within
