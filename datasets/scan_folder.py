@@ -17,13 +17,13 @@ import logging
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
 from datasets.bags.pointcloud2 import TIME_FIELDS, relative_point_seconds
 from datasets.bags.source import LidarSource, nest_dotted
 from datasets.errors import InputError
 from datasets.lidar.corners import CornerConfig
-from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, with_front_end
+from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, LidarSourceOptions, with_front_end
 from datasets.lidar.kiss_icp_odometry import KissIcpSettings
 from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model
@@ -37,7 +37,7 @@ _PCD_TYPES = {("F", 4): "f4", ("F", 8): "f8", ("U", 1): "u1", ("U", 2): "u2", ("
 _PLY_TYPES = {"float": "f4", "float32": "f4", "double": "f8", "float64": "f8", "uchar": "u1", "uint8": "u1", "char": "i1", "int8": "i1", "ushort": "u2", "uint16": "u2", "short": "i2", "int16": "i2", "uint": "u4", "uint32": "u4", "int": "i4", "int32": "i4"}
 
 
-class ScanFolderOptions(BaseModel):
+class ScanFolderOptions(LidarSourceOptions):
     """``--data`` options of ``scans:FOLDER``."""
 
     model_config = ConfigDict(extra="forbid")
@@ -45,14 +45,6 @@ class ScanFolderOptions(BaseModel):
     timestamps: str | None = Field(None, description="file with one frame time [s] per line (default: times.txt / timestamps.txt in the folder)")
     rate_hz: float = Field(10.0, gt=0, description="frame rate when there is no timestamps file")
     ground_truth: str | None = Field(None, description="TUM file of true poses")
-    point_time_unit: str = Field("auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times")
-    point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
-    max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
-    odometry: bool = Field(True, description="KISS-ICP odometry")
-    corners: bool = Field(True, description="corner landmarks")
-    warmup_frames: int = Field(1, ge=0, description="withhold the corners of this many first frames (not yet deskewable)")
-    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)")
-    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings, as corner.KEY=VALUE (listed below)")
 
 
 def _cloud_from_records(records: np.ndarray, names: tuple[str, ...], stamp: float, path: Path, time_unit: str) -> tuple[np.ndarray, np.ndarray | None]:

@@ -17,13 +17,13 @@ import logging
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
 from datasets.bags.reader import ReadReport, ReadSettings, discover_topics, first_gps_origin, iter_messages, open_bag, read_ground_truth, read_stream, topic_types
 from datasets.errors import InputError
 from datasets.lidar.corner_truth import CornerTruth, interpolate_poses, read_corner_truth, sidecar_for
 from datasets.lidar.corners import CornerConfig
-from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, with_front_end
+from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, LidarSourceOptions, with_front_end
 from datasets.lidar.kiss_icp_odometry import KissIcpSettings
 from datasets.measurements import Sensor
 from datasets.options import build_model, yaml_value
@@ -35,7 +35,7 @@ from datasets.trajectory import Trajectory
 log = logging.getLogger(__name__)
 
 
-class BagOptions(BaseModel):
+class BagOptions(LidarSourceOptions):
     """``--data`` options of ``bag:PATH`` (nested ones as ``kiss.voxel_size_m=0.5``, ``corner.directions=true``)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -56,15 +56,7 @@ class BagOptions(BaseModel):
     lidar_to_body: tuple[float, float, float, float, float, float, float] | None = Field(
         None, description="lidar pose in the body (IMU) frame: [x, y, z, qw, qx, qy, qz]; clouds are moved into the body frame (also levels a tilted lidar for the corner slab)"
     )
-    point_time_unit: str = Field("auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times")
     reorder_window_s: float = Field(1.0, ge=0, description="how far stamps may lag bag order and still be reordered [s]")
-    point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
-    max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
-    odometry: bool = Field(True, description="KISS-ICP odometry")
-    corners: bool = Field(True, description="corner landmarks")
-    warmup_frames: int = Field(1, ge=0, description="withhold the corners of this many first frames (not yet deskewable)")
-    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)")
-    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings, as corner.KEY=VALUE (listed below)")
 
 
 def nest_dotted(options: dict[str, str]) -> dict[str, object]:

@@ -35,6 +35,23 @@ class FrontEndSettings(BaseModel):
     corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings")
 
 
+
+class LidarSourceOptions(BaseModel):
+    """``--data`` options every point-cloud source shares (bags and scan folders): how to
+    read per-point times, and what the front end emits."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    point_time_unit: str = Field("auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times")
+    point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
+    max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
+    odometry: bool = Field(True, description="KISS-ICP odometry")
+    corners: bool = Field(True, description="corner landmarks")
+    warmup_frames: int = Field(1, ge=0, description="withhold the corners of this many first frames (not yet deskewable)")
+    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)")
+    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings, as corner.KEY=VALUE (listed below)")
+
+
 @dataclass(frozen=True)
 class FrontEndFrame:
     """The front end's output for one cloud.
