@@ -326,18 +326,12 @@ class KeyframeSmoother:
         self.pending_graph = gtsam.NonlinearFactorGraph()
         self.pending_values = gtsam.Values()
         self.pending_times = {}
+        # Only the newest keyframe's state is needed to go on (the full estimate is O(n)).
         self.estimate_values = self.backend.values(self.motion.keys(len(self.keyframe_t) - 1))
 
     def _update(self, t: float) -> None:
-        self._before_update(t)
-        self.full_graph.push_back(self.pending_graph)
-        self.backend.update(self.pending_graph, self.pending_values, self.pending_times, t)
-        self.pending_graph = gtsam.NonlinearFactorGraph()
-        self.pending_values = gtsam.Values()
-        self.pending_times = {}
+        self._solve_pending(t)
         k = len(self.keyframe_t) - 1
-        # Only the newest keyframe's state is needed to go on (the full estimate is O(n)).
-        self.estimate_values = self.backend.values(self.motion.keys(k))
         if self.record_causal:
             self.motion.record(self.recorder, t, self.estimate_values, k, self.backend_marginals() if self.causal_covariances else None)
 

@@ -75,23 +75,9 @@ def find_loop_closure(
         return (indices[:, None] * d + np.arange(d)[None, :]).ravel()
 
     cur_rows, old_rows = rows(current), rows(old)
-    result = associate_jcbb(
-        positions[current],
-        joint_covariance[np.ix_(cur_rows, cur_rows)],
-        positions[old],
-        joint_covariance[np.ix_(old_rows, old_rows)],
-        cross_cov=joint_covariance[np.ix_(cur_rows, old_rows)],
-        gate_probability=policy.gate_probability,
-        max_nodes=policy.max_nodes,
-    )
-    if result.pairs < policy.min_pairs:
-        return []
-    pairs = [(j, int(i)) for j, i in enumerate(result.assignments) if i >= 0]
-    if policy.unambiguous_only:
-        mask = np.ones((len(current), len(old)), dtype=bool)
-        for j, i in pairs:
-            mask[j, i] = False
-        alternative = associate_jcbb(
+
+    def match(candidate_mask: np.ndarray | None = None):
+        return associate_jcbb(
             positions[current],
             joint_covariance[np.ix_(cur_rows, cur_rows)],
             positions[old],
@@ -99,8 +85,18 @@ def find_loop_closure(
             cross_cov=joint_covariance[np.ix_(cur_rows, old_rows)],
             gate_probability=policy.gate_probability,
             max_nodes=policy.max_nodes,
-            candidate_mask=mask,
+            candidate_mask=candidate_mask,
         )
+
+    result = match()
+    if result.pairs < policy.min_pairs:
+        return []
+    pairs = [(j, int(i)) for j, i in enumerate(result.assignments) if i >= 0]
+    if policy.unambiguous_only:
+        mask = np.ones((len(current), len(old)), dtype=bool)
+        for j, i in pairs:
+            mask[j, i] = False
+        alternative = match(mask)
         if alternative.pairs >= policy.min_pairs:
             return []
     return [(int(current[j]), int(old[i])) for j, i in pairs]
