@@ -96,19 +96,15 @@ def test_averaged_pose_nees_is_inside_the_95_percent_bounds() -> None:
     assert result.inside_fraction >= 0.8, result.inside_fraction
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known issue: the adapted R converges (asserted first), but the ATE with the wrong initial "
-    "guess was 2.80 m vs 0.041 m with the true R (seed 3, 60 s). Cause seen: at the end of the "
-    "warm-up (t=2 s) R = W - mean(H P H^T) drops to ~0.05-0.08 m because the landmarks initialised "
-    "with the 10x R carry inflated covariance; the overconfident filter drifts to 8 m at t=10 s and "
-    "recovers by t=20 s, while R reaches 0.21 m at 60 s. Not fixed yet",
-)
-def test_adaptive_r_converges_from_a_tenfold_wrong_guess() -> None:
-    """True sigma 0.2 m; initial R 10x too large. Adapted R within 25% of truth; ATE within
-    10% of the filter given the true R."""
+@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
+def test_adaptive_r_converges_from_a_tenfold_wrong_guess(seed: int) -> None:
+    """True sigma 0.2 m; initial R 10x too large (variance). Adapted R within 25% of truth;
+    ATE within 10% of the filter given the true R. The first five seeds, not chosen ones:
+    ``benchmarks/bench_aghili_adaptive_r.py`` measured seeds 1-10, 9 of 10 within 10%
+    (seed 9: +19%, from the warm-up before the window holds 30 residuals). The paper's
+    prior-residual form fails all ten (x3.5 to x496)."""
     options = {"duration_s": "60", "landmark_sigma_min_m": "0.2", "landmark_sigma_max_m": "0.2"}
-    sequence = load_scenario("aghili-rover", 3, options)
+    sequence = load_scenario("aghili-rover", seed, options)
     truth = sequence.ground_truth.pose
 
     def position_rmse(estimate) -> float:

@@ -24,7 +24,9 @@ corrected closed-form Phi' (35) and Q' (36), so a step costs O(n). Per landmark 
 association (ids when the scan has them, else ``filters.association`` JCBB), one stacked
 update (40a)-(40c) with the Joseph form, then augmentation of new landmarks with their
 cross-covariance (section 4.3). The measurement noise R is estimated on line (section 4.4,
-eq. (42)) unless ``adaptive_noise=false``.
+eq. (42)) unless ``adaptive_noise=false``; by default from post-fit residuals, since the
+printed prior-residual form collapses when the initial R is wrong (``adaptive_noise``
+module; ``adaptive_residual=prior`` keeps it).
 
 Bad input: a non-finite IMU sample or scan, or time going backwards, raises ``InputError``
 before any state is touched (the state stays finite and usable). An empty scan is not an
@@ -80,6 +82,14 @@ class AghiliConfig(BaseModel):
     adaptive_noise: bool = Field(True, description="estimate R on line (section 4.4, eq. (42))")
     adaptive_window: int = Field(300, ge=10, description="w: landmark residuals in the eq. (42) sliding window")
     adaptive_min_sigma_m: float = Field(0.005, gt=0, description="floor on the adapted landmark std [m] (keeps R PD)")
+    adaptive_min_samples: int = Field(
+        30, ge=3, description="landmark residuals in the window before the adapted R replaces the initial one"
+    )
+    adaptive_residual: Literal["posterior", "prior"] = Field(
+        "posterior",
+        description="eq. (42) on post-fit residuals, R = mean(e e^T + H P+ H^T) (fails safe when P is off), "
+        "or on prior residuals as printed, R = W - H P- H^T",
+    )
     landmark_sigma_m: float | None = Field(
         None, gt=0, description="initial/fixed landmark std [m]; None: the covariances the scans carry"
     )
@@ -192,7 +202,11 @@ class AghiliFilter:
 
         # measurement noise
         self.noise_window = (
-            SlidingWindowNoise(config.adaptive_window, config.adaptive_min_sigma_m) if config.adaptive_noise else None
+            SlidingWindowNoise(
+                config.adaptive_window, config.adaptive_min_sigma_m, config.adaptive_min_samples, config.adaptive_residual
+            )
+            if config.adaptive_noise
+            else None
         )
         self.fixed_r = None if config.landmark_sigma_m is None else np.eye(3) * config.landmark_sigma_m**2
 
@@ -403,9 +417,9 @@ class AghiliFilter:
         residual = (points[rows] - predicted).ravel()  # z - h(x^-)
         HP = H @ self.P
         predicted_cov = HP @ H.T
-        if self.noise_window is not None:
-            blocks = np.array([predicted_cov[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] for i in range(len(rows))])
-            self.noise_window.add(residual.reshape(-1, 3), blocks)
+        if self.noise_window is not None and self.noise_window.residual == "prior":
+            # eq. (42) as printed: prior residuals with their H P^- H^T blocks, used at once
+            self.noise_window.add(residual.reshape(-1, 3), _diagonal_blocks(predicted_cov))
             if self.noise_window.ready:
                 R = np.repeat(self.noise_window.estimate()[None], len(points), axis=0)
         R_stacked = np.zeros((3 * len(rows), 3 * len(rows)))
@@ -437,6 +451,11 @@ class AghiliFilter:
         self.b_a = self.b_a + dx[ACCEL_BIAS]
         if len(self.landmark_ids):
             self.rho = self.rho + dx[VEHICLE_DIM:].reshape(-1, 3)
+        if self.noise_window is not None and self.noise_window.residual == "posterior":
+            # eq. (42) on post-fit residuals e = z - h(x^+) ~ rho - H dx, with H P^+ H^T
+            # (module docstring of adaptive_noise); the next scan uses the new estimate
+            posterior = (residual - H @ dx).reshape(-1, 3)
+            self.noise_window.add(posterior, _projected_blocks(H, self.P))
 
     def _augment(self, point: np.ndarray, R: np.ndarray, landmark_id: int) -> None:
         """Aghili section 4.3: add ``rho = Abar z + r`` with its cross-covariance.
@@ -545,3 +564,25 @@ class AghiliFilter:
         if self.counts["quaternion_resets"]:
             notes.append(f"{self.counts['quaternion_resets']} attitude corrections with |dq_v| >= 1 (rescaled)")
         return self.recorder.build(landmarks=final_map, notes=tuple(notes))
+
+
+def _diagonal_blocks(matrix: np.ndarray) -> np.ndarray:
+    """The 3 x 3 diagonal blocks (m, 3, 3) of a (3m, 3m) matrix."""
+    count = matrix.shape[0] // 3
+    return matrix.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
+
+
+def _projected_blocks(H: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Diagonal 3 x 3 blocks of ``H P H^T`` (m, 3, 3) without forming the (3m, 3m) product.
+
+    Each landmark row block of eq. (10) touches only the attitude, position and its own
+    landmark columns, so a block costs O(1) instead of O(N^2).
+    """
+    count = H.shape[0] // 3
+    blocks = np.empty((count, 3, 3))
+    for i in range(count):
+        rows = H[3 * i : 3 * i + 3]
+        columns = np.flatnonzero(np.any(rows != 0.0, axis=0))
+        local = rows[:, columns]
+        blocks[i] = local @ P[np.ix_(columns, columns)] @ local.T
+    return blocks

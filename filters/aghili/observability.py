@@ -73,3 +73,90 @@ def total_observability_matrix(segments: list[tuple[np.ndarray, np.ndarray]], du
         if j < len(durations):
             transition = expm(F * durations[j]) @ transition
     return np.vstack(rows)
+
+
+@dataclass(frozen=True)
+class TrajectoryObservability:
+    """Observability at one sample of a trajectory.
+
+    Attributes:
+        t: time of the segment [s].
+        segment: eq. (22) for the segment starting at t (with the eq. (27) anchor test).
+        total: eq. (30) over the last ``window`` segments ending at t (None for the first ones).
+        stripped: eq. (32) over the same segments.
+    """
+
+    t: float
+    segment: ObservabilityReport
+    total: ObservabilityReport | None
+    stripped: ObservabilityReport | None
+
+
+def segment_inputs(times: np.ndarray, rotations: np.ndarray, positions: np.ndarray, index: int) -> tuple[np.ndarray, np.ndarray]:
+    """The true mean IMU signals ``(omega_bar, a_bar)`` (body frame) of the segment starting at
+    sample ``index``, by finite differences of the trajectory (gravity ``(0, 0, -9.81)``, so a
+    resting accelerometer reads ``+9.81`` up, eq. (15)).
+
+    Args:
+        times (N,) [s]; rotations (N, 3, 3) body-to-world; positions (N, 3) [m].
+    """
+    from datasets.rotations import so3_log
+
+    dt = times[index + 1] - times[index]
+    attitude = rotations[index]
+    omega = so3_log(attitude.T @ rotations[index + 1]) / dt
+    accel = np.zeros(3)
+    if index + 2 < len(times):
+        later = times[index + 2] - times[index + 1]
+        accel = ((positions[index + 2] - positions[index + 1]) / later - (positions[index + 1] - positions[index]) / dt) / (0.5 * (dt + later))
+    return omega, attitude.T @ (accel + np.array([0.0, 0.0, 9.81]))
+
+
+def observability_along_trajectory(
+    times: np.ndarray,
+    rotations: np.ndarray,
+    positions: np.ndarray,
+    anchors: np.ndarray,
+    candidates: np.ndarray,
+    step_s: float,
+    landmark_count: int,
+    window: int = 3,
+) -> list[TrajectoryObservability]:
+    """Aghili eqs. (22), (27), (30), (32) every ``step_s`` along a (true) 3-D trajectory.
+
+    Each report time starts a piecewise-constant segment (section 3): F and H from the true
+    pose, the true mean IMU signals there, the anchors and the ``landmark_count``
+    estimated landmarks nearest to the vehicle. The total (30) and stripped (32) matrices
+    chain the last ``window`` segments (segment j lasting ``step_s``, transition
+    ``expm(F_j step_s)``) with the landmark set of the latest one, so the state is the same
+    in every block.
+
+    Args:
+        times (N,), rotations (N, 3, 3), positions (N, 3): the trajectory.
+        anchors (r, 3): known landmarks, world [m]; candidates (L, 3): other landmarks.
+    """
+    if len(times) < 3:
+        raise ValueError("observability along a trajectory needs at least three samples")
+    indices = np.unique(np.searchsorted(times, np.arange(times[0], times[-2], step_s)))
+    indices = indices[indices < len(times) - 1]
+    inputs = [segment_inputs(times, rotations, positions, int(index)) for index in indices]
+    reports: list[TrajectoryObservability] = []
+    for k, index in enumerate(indices):
+        position = positions[index]
+        nearest = candidates[np.argsort(np.linalg.norm(candidates - position, axis=1))[:landmark_count]]
+        anchors_body = (anchors - position) @ rotations[index]
+
+        def segment_at(j: int) -> tuple[np.ndarray, np.ndarray]:
+            return segment_matrices(rotations[indices[j]], positions[indices[j]], *inputs[j], anchors, nearest)
+
+        F, H = segment_at(k)
+        size = F.shape[0]
+        segment = rank_report(observability_matrix(F, H), size, anchors_body=anchors_body)
+        total = stripped = None
+        if k + 1 >= window:
+            chain = [segment_at(j) for j in range(k + 1 - window, k + 1)]
+            durations = [float(times[indices[j + 1]] - times[indices[j]]) for j in range(k + 1 - window, k)]
+            total = rank_report(total_observability_matrix(chain, durations), size)
+            stripped = rank_report(total_observability_matrix(chain, durations, stripped=True), size)
+        reports.append(TrajectoryObservability(float(times[index]), segment, total, stripped))
+    return reports
