@@ -52,6 +52,7 @@ from datasets.state import BlockName, Frame, LandmarkMap
 from filters.aghili import quaternion_jpl as quat
 from filters.aghili.adaptive_noise import SlidingWindowNoise
 from filters.aghili.measurement import predict, sensitivity
+from filters.aghili.observability import gauge_rotation_direction, variance_along
 from filters.aghili.process_noise import noise_covariance, process_noise_van_loan, vehicle_process_noise
 from filters.aghili.transition import (
     ACCEL_BIAS,
@@ -401,6 +402,8 @@ class AghiliFilter:
         if scan.t - self._last_snapshot_t >= self.config.snapshot_interval_s:
             self.recorder.landmarks(self._landmark_map(scan.t))
             self._last_snapshot_t = scan.t
+            if len(self.anchor_positions):
+                self.recorder.extra("gauge_yaw_variance_rad2", np.array([scan.t, self.gauge_yaw_variance()]))
 
     def _update(self, scan: LandmarkScan, points: np.ndarray, R: np.ndarray, targets: np.ndarray) -> None:
         """Aghili eqs. (40a)-(40c) with the Joseph form, one stacked update per scan."""
@@ -479,6 +482,12 @@ class AghiliFilter:
         self.rho = np.vstack([self.rho, attitude @ point + self.r])
         self.slot_of[landmark_id] = len(self.landmark_ids)
         self.landmark_ids.append(landmark_id)
+
+    def gauge_yaw_variance(self) -> float:
+        """Variance [rad^2] along the rotation about gravity through the first anchor: the
+        direction one anchor leaves unobservable (section 3), ``(u^T P^-1 u)^-1``."""
+        direction = gauge_rotation_direction(quat.rotation_matrix(self.q), self.r, self.v, self.rho, self.anchor_positions[0])
+        return variance_along(self.P, direction)
 
     # ------------------------------------------------------------------ export
     def interface_pose_covariance(self) -> np.ndarray:

@@ -160,3 +160,33 @@ def observability_along_trajectory(
             stripped = rank_report(total_observability_matrix(chain, durations, stripped=True), size)
         reports.append(TrajectoryObservability(float(times[index]), segment, total, stripped))
     return reports
+
+
+def gauge_rotation_direction(
+    attitude: np.ndarray, position: np.ndarray, velocity: np.ndarray, landmarks: np.ndarray, pivot: np.ndarray
+) -> np.ndarray:
+    """Error-state direction (15 + 3n,) of a rotation of everything about gravity through
+    ``pivot`` (world [m]), per radian: the direction a single anchor leaves unobservable.
+
+    In the filter's coordinates (``transition`` layout): ``dq_v = Abar^T z / 2`` (half
+    angle, body frame), ``dr = z x (r - pivot)``, ``dr_dot = z x v``, biases 0 (body frame,
+    gravity-aligned rotation leaves them), ``drho_i = z x (rho_i - pivot)``.
+    """
+    z_axis = np.array([0.0, 0.0, 1.0])
+    landmarks = np.asarray(landmarks, dtype=float).reshape(-1, 3)
+    direction = np.zeros(15 + 3 * len(landmarks))
+    direction[0:3] = 0.5 * attitude.T @ z_axis
+    direction[3:6] = np.cross(z_axis, position - pivot)
+    direction[6:9] = np.cross(z_axis, velocity)
+    if len(landmarks):
+        direction[15:] = np.cross(z_axis, landmarks - pivot).ravel()
+    return direction
+
+
+def variance_along(covariance: np.ndarray, direction: np.ndarray) -> float:
+    """Variance [unit of the direction's parameter^2] of the coordinate psi along
+    ``x = x_hat + direction * psi`` implied by a Gaussian with ``covariance``:
+    ``(u^T P^-1 u)^-1`` (the information about psi, all other directions free)."""
+    factor = np.linalg.cholesky(0.5 * (covariance + covariance.T))
+    whitened = np.linalg.solve(factor, direction)
+    return float(1.0 / (whitened @ whitened))
