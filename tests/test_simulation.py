@@ -440,3 +440,26 @@ def test_reading_a_broken_folder_raises_input_error(tmp_path):
         read_sequence_folder(folder)
     with pytest.raises(InputError, match="sequence.json"):
         read_sequence_folder(tmp_path)
+
+
+def test_guerreiro_random_speed_is_seeded_covers_the_loop_and_keeps_other_streams() -> None:
+    """speed_profile=random: a different speed per seed, reproducible, the same 60 m path in
+    the same time, lateral body velocity 0, and the sensor noise streams unchanged (the
+    gyro noise of seed 3 is the same whatever the speed profile)."""
+    from datasets.simulation.scenarios import load_scenario
+
+    first = load_scenario("guerreiro-loop", 3, {"speed_profile": "random"})
+    again = load_scenario("guerreiro-loop", 3, {"speed_profile": "random"})
+    other = load_scenario("guerreiro-loop", 4, {"speed_profile": "random"})
+    sinusoidal = load_scenario("guerreiro-loop", 3, {})
+    speed = first.ground_truth.body_velocity.values
+    np.testing.assert_array_equal(speed, again.ground_truth.body_velocity.values)
+    assert np.abs(speed[:, 0] - other.ground_truth.body_velocity.values[:, 0]).max() > 0.01
+    assert np.abs(speed[:, 1]).max() < 1e-12 and speed[:, 0].min() > 0.2
+    np.testing.assert_allclose(first.ground_truth.pose.positions[-1], sinusoidal.ground_truth.pose.positions[-1], atol=1e-6)
+    # increments of a random walk of density 0.02 m/s/sqrt(s) (mean reversion over 5 s is slow at 0.1 s)
+    increments = np.diff(speed[:, 0])
+    dt = np.diff(first.ground_truth.body_velocity.t)[0]
+    assert 0.015 < np.std(increments) / np.sqrt(dt) < 0.025
+    gyro_bias = first.ground_truth.history.block("gyro_bias").values
+    np.testing.assert_array_equal(gyro_bias, sinusoidal.ground_truth.history.block("gyro_bias").values)

@@ -18,6 +18,7 @@ meaningless there).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -35,7 +36,7 @@ from datasets.simulation.landmarks import (
     planar_direction_observations, range_bearing_observations, to_body_frame,
 )
 from datasets.simulation.trajectories import (
-    CircleMotion, PlanarPathMotion, RoundedPolylinePath, SinusoidalSpeed, StaticMotion, Terrain, TerrainViaPointLoop,
+    CircleMotion, PlanarPathMotion, RandomSpeed, RoundedPolylinePath, SinusoidalSpeed, StaticMotion, Terrain, TerrainViaPointLoop,
 )
 
 
@@ -97,6 +98,14 @@ class GuerreiroLoopOptions(_CommonOptions):
     fov_deg: float = Field(270.0, gt=0, le=360, description="laser field of view [deg] (UTM-30LX: 270)")
     gyro_rate_hz: float = Field(10.0, gt=0, le=10000, description="rate gyro rate [Hz] (paper: synchronised with the laser)")
     mean_speed_m_s: float = Field(0.4, gt=0, le=3, description="average speed [m/s] (paper: 0.4)")
+    speed_profile: Literal["sinusoidal", "random"] = Field(
+        "sinusoidal",
+        description="'sinusoidal': +-30 % in five smooth cycles (the same for every seed); 'random': a seeded "
+        "mean-reverting random walk of density speed_walk_m_s_sqrt_s (the paper's velocity model (2))",
+    )
+    speed_walk_m_s_sqrt_s: float = Field(
+        0.02, ge=0, le=0.1, description="density of the random speed profile [m/s/sqrt(s)] (speed_profile=random)"
+    )
     gyro_noise_density: float = Field(
         float(np.deg2rad(0.1)), ge=0, description="gyro white noise [rad/s/sqrt(Hz)] (MEMS grade, 0.1 deg/s/sqrt(Hz))"
     )
@@ -117,8 +126,9 @@ def _noise_factors(noise_scale: float) -> tuple[float, float]:
 
 def _generators(seed: int) -> dict[str, np.random.Generator]:
     """Independent generators per purpose, all from ``seed``."""
-    children = np.random.SeedSequence(seed).spawn(4)
-    names = ("inertial", "landmarks", "spare", "initial")
+    # spawn keys are indices: adding a name at the end leaves the others' streams unchanged
+    names = ("inertial", "landmarks", "spare", "initial", "motion")
+    children = np.random.SeedSequence(seed).spawn(len(names))
     return {name: np.random.default_rng(child) for name, child in zip(names, children)}
 
 
@@ -266,11 +276,14 @@ LOOP_PATH_LENGTH_M = 60.0
 LOOP_TURN_LENGTH_M = 3.0
 
 
-def guerreiro_loop_motion(mean_speed_m_s: float) -> PlanarPathMotion:
+def guerreiro_loop_motion(
+    mean_speed_m_s: float, speed_walk_m_s_sqrt_s: float | None = None, rng: np.random.Generator | None = None
+) -> PlanarPathMotion:
     """The loop of Guerreiro et al. (2013) section V: start in the middle of the bottom
     corridor heading east, go counterclockwise round the ring corridor and on past the start
     until the path is 60 m long; corners rounded; speed 0.4 m/s on average, varying +-30 %
-    in five smooth cycles."""
+    in five smooth cycles, or, given ``speed_walk_m_s_sqrt_s`` and ``rng``, a random speed
+    (``RandomSpeed``) with that density."""
     plan = ring_corridor_building()
     (x0, y0), (x1, _), (_, y1), _ = plan.corridor_centerline
     start = np.array([(x0 + x1) / 2, y0])
@@ -279,7 +292,11 @@ def guerreiro_loop_motion(mean_speed_m_s: float) -> PlanarPathMotion:
     beyond = LOOP_PATH_LENGTH_M - lap.length_m
     path = RoundedPolylinePath(np.array(vertices + [start + [beyond, 0.0]]), LOOP_TURN_LENGTH_M)
     duration = path.length_m / mean_speed_m_s
-    return PlanarPathMotion(path, SinusoidalSpeed(mean_speed_m_s, 0.3, 5, duration))
+    if speed_walk_m_s_sqrt_s is None:
+        return PlanarPathMotion(path, SinusoidalSpeed(mean_speed_m_s, 0.3, 5, duration))
+    if rng is None:
+        raise ValueError("a random speed profile needs a generator")
+    return PlanarPathMotion(path, RandomSpeed(mean_speed_m_s, speed_walk_m_s_sqrt_s, duration, rng))
 
 
 def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
@@ -295,13 +312,18 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     body-frame unit directions of its two walls (the paper's direction landmarks), each
     rotated by N(0, direction_sigma_deg^2) noise.
     """
-    motion = guerreiro_loop_motion(options.mean_speed_m_s)
+    generators = _generators(seed)
+    random_speed = options.speed_profile == "random"
+    motion = guerreiro_loop_motion(
+        options.mean_speed_m_s,
+        options.speed_walk_m_s_sqrt_s if random_speed else None,
+        generators["motion"] if random_speed else None,
+    )
     full = motion.duration_s
     duration = options.duration_s if options.duration_s is not None else full
     if duration > full + 1e-9:
         raise InputError(f"sim:guerreiro-loop: duration_s={duration} exceeds the path's {full:.1f} s")
     plan = ring_corridor_building()
-    generators = _generators(seed)
     drawn, stated = _noise_factors(options.noise_scale)
     nominal = InertialNoise(
         gyro_noise_density=options.gyro_noise_density, accel_noise_density=0.0,

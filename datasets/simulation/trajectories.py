@@ -355,6 +355,52 @@ class SinusoidalSpeed:
         return distance, speed, rate
 
 
+class RandomSpeed:
+    """A seeded random speed: mean-reverting random walk (Ornstein-Uhlenbeck)
+    ``dv = -(v - v_mean) / tau dt + sigma dW``, rescaled so that the distance after
+    ``duration_s`` is exactly ``v_mean * duration_s`` (the path is still covered once).
+
+    Over times much shorter than ``tau`` the speed is a random walk of density ``sigma``
+    [m/s/sqrt(s)]: the velocity model of Guerreiro et al. eq. (2) with its disturbance
+    (``Xi_V = Ts sigma_v^2``). The reversion (``tau`` = 5 s by default) keeps the distance
+    within about ``sigma tau sqrt(T)`` of the mean so the rescaling is a few percent.
+    Drawn exactly on a 10 ms grid, linear in between: the speed is continuous, so the yaw
+    rate ``curvature * speed`` is too; its derivative is piecewise constant.
+    """
+
+    GRID_S = 0.01
+
+    def __init__(self, mean_m_s: float, sigma: float, duration_s: float, rng: np.random.Generator, tau_s: float = 5.0):
+        self.mean_m_s = float(mean_m_s)
+        self.duration_s = float(duration_s)
+        count = int(np.ceil(self.duration_s / self.GRID_S)) + 2
+        decay = np.exp(-self.GRID_S / tau_s)
+        # exact OU transition over one grid step
+        step_sigma = sigma * np.sqrt(tau_s / 2.0 * (1.0 - decay**2))
+        deviation = np.zeros(count)
+        shocks = rng.standard_normal(count - 1) * step_sigma
+        for index in range(1, count):
+            deviation[index] = decay * deviation[index - 1] + shocks[index - 1]
+        speed = self.mean_m_s + deviation
+        self._times = np.arange(count) * self.GRID_S
+        distance = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * self.GRID_S)])
+        scale = self.mean_m_s * self.duration_s / float(np.interp(self.duration_s, self._times, distance))
+        self._speed = speed * scale
+        self._distance = distance * scale
+        if np.min(self._speed) <= 0.0:
+            raise ValueError("random speed profile reached zero: lower its sigma")
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Distance [m], speed [m/s] and its derivative [m/s^2] at times t, each (N,)."""
+        t = np.asarray(t, dtype=float)
+        index = np.clip(np.searchsorted(self._times, t, side="right") - 1, 0, len(self._times) - 2)
+        into = t - self._times[index]
+        slope = (self._speed[index + 1] - self._speed[index]) / self.GRID_S
+        speed = self._speed[index] + slope * into
+        distance = self._distance[index] + self._speed[index] * into + 0.5 * slope * into**2
+        return distance, speed, slope
+
+
 class PlanarPathMotion:
     """A planar vehicle following ``path`` with a speed profile, heading along the path.
 
@@ -362,7 +408,7 @@ class PlanarPathMotion:
     left normal n).
     """
 
-    def __init__(self, path: RoundedPolylinePath, speed: SinusoidalSpeed):
+    def __init__(self, path: RoundedPolylinePath, speed: SinusoidalSpeed | RandomSpeed):
         self.path = path
         self.speed = speed
         self.duration_s = speed.duration_s
