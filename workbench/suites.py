@@ -16,7 +16,8 @@ Suites:
     ``paper``        the two papers' scenarios at full length, Victoria Park, KITTI IMU/GPS
                      and the synthetic lidar bag, every estimator.
     ``consistency``  Monte Carlo NEES: the simulated scenarios (the rover's first minute,
-                     the whole loop, half a minute of the circle), 50 runs.
+                     the whole loop, the loop with a random speed, half a minute of the
+                     circle), 50 runs.
 """
 
 from __future__ import annotations
@@ -229,6 +230,16 @@ SUITES: dict[str, Suite] = {
             datasets=(
                 DatasetSpec("sim:aghili-rover", (("duration_s", "60"),)),
                 DatasetSpec("sim:guerreiro-loop"),
+                # the loop with a random speed: the motion the sensor-based model describes, and
+                # that filter's process noise set to what the simulator does (lateral speed 0)
+                DatasetSpec(
+                    "sim:guerreiro-loop",
+                    (("speed_profile", "random"),),
+                    label="sim:guerreiro-loop (random speed)",
+                    estimator_options=(
+                        ("sensor-based", (("sigma_velocity_m_s", "[0.02, 0.0]"), ("sigma_landmark_m", "0"))),
+                    ),
+                ),
                 DatasetSpec("sim:circle", (("duration_s", "30"),)),
             ),
             estimators=ALL_ESTIMATORS,
