@@ -463,3 +463,17 @@ def test_guerreiro_random_speed_is_seeded_covers_the_loop_and_keeps_other_stream
     assert 0.015 < np.std(increments) / np.sqrt(dt) < 0.025
     gyro_bias = first.ground_truth.history.block("gyro_bias").values
     np.testing.assert_array_equal(gyro_bias, sinusoidal.ground_truth.history.block("gyro_bias").values)
+
+
+def test_niche_depth_sets_the_closest_corner_separation() -> None:
+    def closest(plan) -> float:
+        distances = np.linalg.norm(plan.corners[:, None] - plan.corners[None], axis=2)
+        np.fill_diagonal(distances, np.inf)
+        return float(distances.min())
+
+    default, deep = ring_corridor_building(), ring_corridor_building(niche_depth_m=1.0)
+    assert len(default.corners) == len(deep.corners) == 76
+    assert closest(default) == pytest.approx(0.3)
+    assert closest(deep) == pytest.approx(0.8)
+    with pytest.raises(ValueError, match="niche depth"):
+        ring_corridor_building(niche_depth_m=2.0)

@@ -8,7 +8,7 @@ corners at once. Every polygon vertex is a corner landmark.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -86,11 +86,17 @@ class FloorPlan:
 
 
 def ring_corridor_building(
-    width_m: float = 20.0, height_m: float = 8.0, corridor_width_m: float = 2.6
+    width_m: float = 20.0, height_m: float = 8.0, corridor_width_m: float = 2.6, niche_depth_m: float | None = None
 ) -> FloorPlan:
     """A ring corridor around a central block; the corridor centre line is the rectangle
     [0, width] x [0, height]. Niche positions are fixed and deliberately irregular so that
-    the corner constellation looks different at every place along the loop."""
+    the corner constellation looks different at every place along the loop.
+
+    ``niche_depth_m`` replaces every niche's depth (0.3-0.45 m by default). The depth is the
+    distance between a niche's jamb corner and its back corner, so it sets how far apart
+    the closest corners are: at the laser noise of Guerreiro et al. (3.75 deg, 0.15 m) the
+    default niches are individually ambiguous, 1 m deep ones (corners >= 0.8 m apart) much
+    less so (association difficulty as a knob)."""
     half = corridor_width_m / 2
     outer_width, outer_height = width_m + corridor_width_m, height_m + corridor_width_m
     inner_width, inner_height = width_m - corridor_width_m, height_m - corridor_width_m
@@ -106,6 +112,11 @@ def ring_corridor_building(
         Niche(2, 4.4, 1.0, -0.35), Niche(2, 12.3, 0.9, -0.3),
         Niche(3, 3.1, 0.8, -0.3),
     ]
+    if niche_depth_m is not None:
+        if not 0.0 < niche_depth_m <= 1.2:
+            raise ValueError(f"niche depth must be in (0, 1.2] m, got {niche_depth_m}")
+        outer_niches = [replace(niche, depth_m=niche_depth_m) for niche in outer_niches]
+        inner_niches = [replace(niche, depth_m=-niche_depth_m) for niche in inner_niches]
     outer = niched_rectangle((-half, -half), (-half + outer_width, -half + outer_height), outer_niches)
     inner = niched_rectangle((half, half), (half + inner_width, half + inner_height), inner_niches)
     centerline = np.array([[0.0, 0.0], [width_m, 0.0], [width_m, height_m], [0.0, height_m]])

@@ -113,6 +113,11 @@ class GuerreiroLoopOptions(_CommonOptions):
         float(np.deg2rad(5.7e-5)), ge=0, description="gyro bias random walk [rad/s^2/sqrt(Hz)] (paper: 5.7e-5 deg/s)"
     )
     gyro_bias_sigma_rad_s: float = Field(5e-3, ge=0, description="std of the initial gyro bias [rad/s]")
+    niche_depth_m: float | None = Field(
+        None, gt=0, le=1.2,
+        description="depth of every door niche [m] (default: 0.3-0.45 m, corners individually ambiguous at the "
+        "paper's laser noise; 1.0: corners >= 0.8 m apart)",
+    )
     directions: bool = Field(False, description="scans carry each corner's two wall directions (body frame)")
     direction_sigma_deg: float = Field(
         2.0, ge=0, description="std of the wall direction angle noise [deg] (the paper states none)"
@@ -323,7 +328,7 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     duration = options.duration_s if options.duration_s is not None else full
     if duration > full + 1e-9:
         raise InputError(f"sim:guerreiro-loop: duration_s={duration} exceeds the path's {full:.1f} s")
-    plan = ring_corridor_building()
+    plan = ring_corridor_building(niche_depth_m=options.niche_depth_m)
     drawn, stated = _noise_factors(options.noise_scale)
     nominal = InertialNoise(
         gyro_noise_density=options.gyro_noise_density, accel_noise_density=0.0,
