@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.signal import lfilter
 
 from datasets.rotations import rot2_batch
 
@@ -377,10 +378,9 @@ class RandomSpeed:
         decay = np.exp(-self.GRID_S / tau_s)
         # exact OU transition over one grid step
         step_sigma = sigma * np.sqrt(tau_s / 2.0 * (1.0 - decay**2))
-        deviation = np.zeros(count)
         shocks = rng.standard_normal(count - 1) * step_sigma
-        for index in range(1, count):
-            deviation[index] = decay * deviation[index - 1] + shocks[index - 1]
+        # deviation[i] = decay * deviation[i - 1] + shocks[i - 1], from deviation[0] = 0
+        deviation = np.concatenate([[0.0], lfilter([1.0], [1.0, -decay], shocks)])
         speed = self.mean_m_s + deviation
         self._times = np.arange(count) * self.GRID_S
         distance = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * self.GRID_S)])

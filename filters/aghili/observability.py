@@ -14,7 +14,7 @@ from scipy.linalg import expm
 
 from datasets.rotations import skew
 from filters.aghili.measurement import predict, sensitivity
-from filters.aghili.transition import error_dynamics
+from filters.aghili.transition import ATTITUDE, POSITION, VEHICLE_DIM, VELOCITY, error_dynamics
 
 
 @dataclass(frozen=True)
@@ -154,7 +154,7 @@ def observability_along_trajectory(
         segment = rank_report(observability_matrix(F, H), size, anchors_body=anchors_body)
         total = stripped = None
         if k + 1 >= window:
-            chain = [segment_at(j) for j in range(k + 1 - window, k + 1)]
+            chain = [segment_at(j) for j in range(k + 1 - window, k)] + [(F, H)]
             durations = [float(times[indices[j + 1]] - times[indices[j]]) for j in range(k + 1 - window, k)]
             total = rank_report(total_observability_matrix(chain, durations), size)
             stripped = rank_report(total_observability_matrix(chain, durations, stripped=True), size)
@@ -174,12 +174,12 @@ def gauge_rotation_direction(
     """
     z_axis = np.array([0.0, 0.0, 1.0])
     landmarks = np.asarray(landmarks, dtype=float).reshape(-1, 3)
-    direction = np.zeros(15 + 3 * len(landmarks))
-    direction[0:3] = 0.5 * attitude.T @ z_axis
-    direction[3:6] = np.cross(z_axis, position - pivot)
-    direction[6:9] = np.cross(z_axis, velocity)
+    direction = np.zeros(VEHICLE_DIM + 3 * len(landmarks))
+    direction[ATTITUDE] = 0.5 * attitude.T @ z_axis
+    direction[POSITION] = np.cross(z_axis, position - pivot)
+    direction[VELOCITY] = np.cross(z_axis, velocity)
     if len(landmarks):
-        direction[15:] = np.cross(z_axis, landmarks - pivot).ravel()
+        direction[VEHICLE_DIM:] = np.cross(z_axis, landmarks - pivot).ravel()
     return direction
 
 

@@ -65,11 +65,16 @@ def register(app: typer.Typer) -> None:
             segment = report.segment
             collinear = "-" if segment.anchors_collinear is None else str(segment.anchors_collinear)
             pi_sv = "-" if segment.pi_smallest_singular_value is None else f"{segment.pi_smallest_singular_value:.3e}"
-            total = "-" if report.total is None else str(report.total.rank)
-            total_sv = "-" if report.total is None else f"{report.total.smallest_singular_values[0]:.3e}"
-            stripped = "-" if report.stripped is None else str(report.stripped.rank)
-            stripped_sv = "-" if report.stripped is None else f"{report.stripped.smallest_singular_values[0]:.3e}"
+            total, total_sv = _rank_cells(report.total)
+            stripped, stripped_sv = _rank_cells(report.stripped)
             typer.echo(
                 f"{report.t:8.1f} {segment.rank:5d} {segment.smallest_singular_values[0]:10.3e} {pi_sv:>10} {collinear:>9} "
                 f"{total:>6} {total_sv:>10} {stripped:>8} {stripped_sv:>10}"
             )
+
+
+def _rank_cells(report) -> tuple[str, str]:
+    """(rank, smallest singular value) as table cells, "-" where no report exists yet."""
+    if report is None:
+        return "-", "-"
+    return str(report.rank), f"{report.smallest_singular_values[0]:.3e}"
