@@ -42,7 +42,9 @@ def main() -> None:
         start = time.perf_counter()
         for _ in range(updates):
             body = (f.rho[:10] - f.r) @ quat.rotation_matrix(f.q)
-            f.process(LandmarkScan(f.t, body, np.repeat(np.eye(3)[None] * 0.04, 10, axis=0), ids=ids))
+            f.process(
+                LandmarkScan(f.t, body, np.repeat(np.eye(3)[None] * 0.04, 10, axis=0), ids=ids)
+            )
         update_rate = updates / (time.perf_counter() - start)
         print(f"{count:5d} {propagation_rate:14.0f} {update_rate:17.0f}")
 

@@ -42,8 +42,14 @@ def main() -> None:
     parser.add_argument("--seeds", default="1-10", help="seed range, e.g. 1-10")
     parser.add_argument("--duration", default="60", help="scenario length [s]")
     args = parser.parse_args()
-    options = {"duration_s": args.duration, "landmark_sigma_min_m": str(TRUE_SIGMA_M), "landmark_sigma_max_m": str(TRUE_SIGMA_M)}
-    print(f"{'seed':>4} {'form':>9} {'sigma_R [m] (x, y, z)':>24} {'ATE adapt':>10} {'ATE true R':>10} {'ratio':>6}")
+    options = {
+        "duration_s": args.duration,
+        "landmark_sigma_min_m": str(TRUE_SIGMA_M),
+        "landmark_sigma_max_m": str(TRUE_SIGMA_M),
+    }
+    print(
+        f"{'seed':>4} {'form':>9} {'sigma_R [m] (x, y, z)':>24} {'ATE adapt':>10} {'ATE true R':>10} {'ratio':>6}"
+    )
     ratios: dict[str, list[float]] = {"posterior": [], "prior": []}
     for seed in seed_range(args.seeds):
         sequence = load_scenario("aghili-rover", seed, options)
@@ -51,15 +57,23 @@ def main() -> None:
         reference_rmse = position_rmse(sequence, reference)
         for form in ratios:
             adaptive, estimate = run(
-                sequence, landmark_sigma_m=TRUE_SIGMA_M * np.sqrt(10.0), adaptive_noise=True, adaptive_residual=form
+                sequence,
+                landmark_sigma_m=TRUE_SIGMA_M * np.sqrt(10.0),
+                adaptive_noise=True,
+                adaptive_residual=form,
             )
             sigma = np.sqrt(np.diag(adaptive.noise_window.estimate()))
             rmse = position_rmse(sequence, estimate)
             ratios[form].append(rmse / reference_rmse)
             sigma_text = " ".join(f"{value:.3f}" for value in sigma)
-            print(f"{seed:4d} {form:>9} {sigma_text:>24} {rmse:10.4f} {reference_rmse:10.4f} {rmse / reference_rmse:6.3f}", flush=True)
+            print(
+                f"{seed:4d} {form:>9} {sigma_text:>24} {rmse:10.4f} {reference_rmse:10.4f} {rmse / reference_rmse:6.3f}",
+                flush=True,
+            )
     for form, values in ratios.items():
-        print(f"{form}: ATE ratio median {np.median(values):.3f}, max {np.max(values):.3f}, within 10%: {np.mean(np.array(values) <= 1.1):.0%}")
+        print(
+            f"{form}: ATE ratio median {np.median(values):.3f}, max {np.max(values):.3f}, within 10%: {np.mean(np.array(values) <= 1.1):.0%}"
+        )
 
 
 if __name__ == "__main__":

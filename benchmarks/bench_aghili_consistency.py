@@ -25,13 +25,17 @@ def block_nees(estimate, sequence, name: str) -> np.ndarray:
     truth = sequence.ground_truth.history.block(name)
     index = np.clip(np.searchsorted(truth.t, block.t - 1e-9), 0, len(truth.t) - 1)
     errors = truth.values[index] - block.values
-    return np.einsum("ni,ni->n", errors, np.linalg.solve(block.covariances, errors[:, :, None])[:, :, 0])
+    return np.einsum(
+        "ni,ni->n", errors, np.linalg.solve(block.covariances, errors[:, :, None])[:, :, 0]
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20)
-    parser.add_argument("--duration", type=float, default=None, help="seconds (default: the full 144 s lap)")
+    parser.add_argument(
+        "--duration", type=float, default=None, help="seconds (default: the full 144 s lap)"
+    )
     parser.add_argument("--noise-scale", type=float, default=1.0)
     parser.add_argument("--anchors", type=int, default=3)
     parser.add_argument("--set", nargs="*", default=[], help="filter config key=value")
@@ -54,8 +58,14 @@ def main() -> None:
         pose_runs.append(nees(pose_errors(pose, truth.select(index)), pose.covariances))
         for name in blocks:
             blocks[name].append(block_nees(estimate, sequence, name))
-    print(f"runs={args.runs} duration={args.duration or 'full'} noise_scale={args.noise_scale} anchors={args.anchors} set={overrides}")
-    for name, runs, dof in [("pose", pose_runs, 6), ("gyro_bias", blocks["gyro_bias"], 3), ("accel_bias", blocks["accel_bias"], 3)]:
+    print(
+        f"runs={args.runs} duration={args.duration or 'full'} noise_scale={args.noise_scale} anchors={args.anchors} set={overrides}"
+    )
+    for name, runs, dof in [
+        ("pose", pose_runs, 6),
+        ("gyro_bias", blocks["gyro_bias"], 3),
+        ("accel_bias", blocks["accel_bias"], 3),
+    ]:
         steps = min(len(r) for r in runs)
         result = averaged_nees(np.stack([r[:steps] for r in runs]), dof=dof)
         print(

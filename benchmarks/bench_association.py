@@ -22,11 +22,20 @@ import numpy as np
 from filters.association import DEFAULT_MAX_NODES, associate_jcbb
 
 
-def _problem(rng: np.random.Generator, landmarks: int, measured: int, common_sigma: float, spacing: float):
+def _problem(
+    rng: np.random.Generator, landmarks: int, measured: int, common_sigma: float, spacing: float
+):
     side = int(np.ceil(np.sqrt(landmarks)))
-    grid = spacing * np.stack(np.meshgrid(np.arange(side), np.arange(side)), axis=-1).reshape(-1, 2)[:landmarks]
+    grid = (
+        spacing
+        * np.stack(np.meshgrid(np.arange(side), np.arange(side)), axis=-1).reshape(-1, 2)[
+            :landmarks
+        ]
+    )
     predicted = grid + 0.02 * rng.normal(size=grid.shape)
-    joint = np.kron(np.full((landmarks, landmarks), common_sigma**2), np.eye(2)) + 0.05**2 * np.eye(2 * landmarks)
+    joint = np.kron(np.full((landmarks, landmarks), common_sigma**2), np.eye(2)) + 0.05**2 * np.eye(
+        2 * landmarks
+    )
     chosen = rng.choice(landmarks, size=measured, replace=False)
     offset = common_sigma * rng.normal(size=2)
     z = grid[chosen] + offset + 0.05 * rng.normal(size=(measured, 2))
@@ -39,7 +48,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     print(f"max_nodes={args.max_nodes}")
-    print(f"{'m':>4} {'k':>4} {'sigma':>6} {'cand.pairs':>10} {'nodes':>8} {'ms':>9} {'capped':>6} {'correct':>8}")
+    print(
+        f"{'m':>4} {'k':>4} {'sigma':>6} {'cand.pairs':>10} {'nodes':>8} {'ms':>9} {'capped':>6} {'correct':>8}"
+    )
     for landmarks, measured in ((10, 5), (50, 10), (200, 15)):
         for common_sigma in (0.05, 0.2, 0.5, 1.0, 2.0):
             rng = np.random.default_rng(0)

@@ -32,9 +32,15 @@ WINDOWS = ((0.0, 50.0), (50.0, 100.0), (100.0, 150.0), (150.0, 1e9))
 def main(argv: list[str]) -> None:
     seeds = [int(s) for s in (argv[0] if argv else "0,1,2,3,4").split(",")]
     data = dict(a.split("=", 1) for a in argv[1:] if not a.startswith("set."))
-    config = parse_options(EkfSlamConfig, dict(a[4:].split("=", 1) for a in argv[1:] if a.startswith("set.")), "set")
-    print(f"ekf-slam on sim:guerreiro-loop, data {data}, config overrides {[a for a in argv[1:] if a.startswith('set.')]}")
-    print(f"{'seed':>4} {'ATE [m]':>8} {'NEES':>6} {'inside':>6} {'NIS':>5}  pose NEES by window   heading NEES by window")
+    config = parse_options(
+        EkfSlamConfig, dict(a[4:].split("=", 1) for a in argv[1:] if a.startswith("set.")), "set"
+    )
+    print(
+        f"ekf-slam on sim:guerreiro-loop, data {data}, config overrides {[a for a in argv[1:] if a.startswith('set.')]}"
+    )
+    print(
+        f"{'seed':>4} {'ATE [m]':>8} {'NEES':>6} {'inside':>6} {'NIS':>5}  pose NEES by window   heading NEES by window"
+    )
     means = []
     for seed in seeds:
         sequence = load_dataset("sim:guerreiro-loop", seed, data)
@@ -57,7 +63,9 @@ def main(argv: list[str]) -> None:
         )
     runs = len(seeds)
     low, high = chi2.ppf([0.025, 0.975], runs * 3) / runs
-    print(f"NEES averaged over runs and time: {np.mean(means):.2f} (3 dof; 95% bounds for {runs} runs: [{low:.2f}, {high:.2f}])")
+    print(
+        f"NEES averaged over runs and time: {np.mean(means):.2f} (3 dof; 95% bounds for {runs} runs: [{low:.2f}, {high:.2f}])"
+    )
 
 
 if __name__ == "__main__":

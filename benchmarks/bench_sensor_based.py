@@ -40,9 +40,19 @@ def _time(landmarks: int, d: int, steps: int, association: str) -> tuple[float, 
         sensors=frozenset({Sensor.GYRO, Sensor.LANDMARKS}),
         stream=lambda: iter(()),
         noise=NoiseSpec(gyro_noise_density=1e-3, gyro_bias_sigma_rad_s=0.01),
-        initial_state=InitialState(t=0.0, position=np.zeros(d), rotation=np.array(0.0) if d == 2 else np.array([1.0, 0, 0, 0]), velocity=np.zeros(d)),
+        initial_state=InitialState(
+            t=0.0,
+            position=np.zeros(d),
+            rotation=np.array(0.0) if d == 2 else np.array([1.0, 0, 0, 0]),
+            velocity=np.zeros(d),
+        ),
     )
-    config = SensorBasedConfig(association=association, max_landmarks=max(200, landmarks), in_view_range_m=1.0, min_observations=1)
+    config = SensorBasedConfig(
+        association=association,
+        max_landmarks=max(200, landmarks),
+        in_view_range_m=1.0,
+        min_observations=1,
+    )
     estimator = SensorBasedSlam(config, sequence)
     rate = np.zeros(r)
     rate[-1] = 0.05
@@ -56,9 +66,18 @@ def _time(landmarks: int, d: int, steps: int, association: str) -> tuple[float, 
         rotation = np.eye(d)
         rotation[:2, :2] = [[c, -s], [s, c]]
         body = world @ rotation
-        visible = np.arange(landmarks) if k == 0 else rng.choice(landmarks, size=min(10, landmarks), replace=False)
+        visible = (
+            np.arange(landmarks)
+            if k == 0
+            else rng.choice(landmarks, size=min(10, landmarks), replace=False)
+        )
         points = body[visible] + sigma * rng.normal(size=(len(visible), d))
-        scan = LandmarkScan(t=t, points=points, covariances=np.repeat((sigma**2 * np.eye(d))[None], len(visible), 0), ids=visible)
+        scan = LandmarkScan(
+            t=t,
+            points=points,
+            covariances=np.repeat((sigma**2 * np.eye(d))[None], len(visible), 0),
+            ids=visible,
+        )
         start = time.perf_counter()
         estimator.process(GyroSample(t=t, rate=rate.copy()))
         middle = time.perf_counter()
@@ -67,7 +86,11 @@ def _time(landmarks: int, d: int, steps: int, association: str) -> tuple[float, 
         if k > 0:
             predict_seconds += middle - start
             scan_seconds += end - middle
-    return 1e3 * predict_seconds / steps, 1e3 * scan_seconds / steps, len(estimator.state.landmark_ids())
+    return (
+        1e3 * predict_seconds / steps,
+        1e3 * scan_seconds / steps,
+        len(estimator.state.landmark_ids()),
+    )
 
 
 def main() -> None:
@@ -76,11 +99,15 @@ def main() -> None:
     parser.add_argument("--dimension", type=int, choices=[2, 3], default=2)
     args = parser.parse_args()
     print(f"dimension {args.dimension}, {args.steps} steps, 10 landmarks visible per scan")
-    print(f"{'landmarks':>9} {'assoc':>6} {'in state':>8} {'predict ms':>11} {'scan ms':>9} {'total ms/step':>14}")
+    print(
+        f"{'landmarks':>9} {'assoc':>6} {'in state':>8} {'predict ms':>11} {'scan ms':>9} {'total ms/step':>14}"
+    )
     for landmarks in (10, 50, 200):
         for association in ("ids", "jcbb"):
             predict, scan, in_state = _time(landmarks, args.dimension, args.steps, association)
-            print(f"{landmarks:>9} {association:>6} {in_state:>8} {predict:>11.3f} {scan:>9.3f} {predict + scan:>14.3f}")
+            print(
+                f"{landmarks:>9} {association:>6} {in_state:>8} {predict:>11.3f} {scan:>9.3f} {predict + scan:>14.3f}"
+            )
 
 
 if __name__ == "__main__":

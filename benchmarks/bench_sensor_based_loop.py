@@ -30,7 +30,9 @@ def main() -> None:
     parser.add_argument("--data", nargs="*", default=[])
     args = parser.parse_args()
     overrides = {k: yaml_value(v) for k, v in (item.split("=", 1) for item in args.set)}
-    sequence = load_scenario("guerreiro-loop", args.seed, dict(item.split("=", 1) for item in args.data))
+    sequence = load_scenario(
+        "guerreiro-loop", args.seed, dict(item.split("=", 1) for item in args.data)
+    )
     estimator = SensorBasedSlam(SensorBasedConfig(**{"association": "jcbb", **overrides}), sequence)
     start = time.perf_counter()
     for measurement in sequence.measurements():
@@ -50,7 +52,9 @@ def main() -> None:
         if event.kind != "loop_closure":
             continue
         pairs = event.details["pairs"]
-        correct = sum(1 for kept, removed in pairs if mapping.get(kept, -1) == mapping.get(removed, -2) != -1)
+        correct = sum(
+            1 for kept, removed in pairs if mapping.get(kept, -1) == mapping.get(removed, -2) != -1
+        )
         index = int(np.searchsorted(snapshot_t, event.t))
         before = snapshots[index - 1] if index > 0 else None
         after = snapshots[min(index, len(snapshots) - 1)]
@@ -61,9 +65,18 @@ def main() -> None:
         )
     metrics = compute_metrics(estimate, sequence)
     keys = (
-        "ate_rmse_m", "ate_rmse_raw_m", "association_precision", "association_recall", "loop_closures",
-        "loop_closure_precision", "nis_mean", "nis_below_95_fraction", "landmark_rmse_m", "landmarks_mapped",
-        "nees_velocity_mean", "nees_gyro_bias_mean",
+        "ate_rmse_m",
+        "ate_rmse_raw_m",
+        "association_precision",
+        "association_recall",
+        "loop_closures",
+        "loop_closure_precision",
+        "nis_mean",
+        "nis_below_95_fraction",
+        "landmark_rmse_m",
+        "landmarks_mapped",
+        "nees_velocity_mean",
+        "nees_gyro_bias_mean",
     )
     for key in keys:
         print(f"  {key}: {metrics.get(key)}")

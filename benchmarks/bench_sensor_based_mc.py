@@ -30,7 +30,9 @@ def vehicle_nees(estimate, sequence, rows: slice = slice(None)) -> tuple[np.ndar
     states = extras["vehicle_state"]
     covs = extras["vehicle_covariance"].reshape(len(t), states.shape[1], states.shape[1])
     truth = sequence.ground_truth
-    index = np.clip(np.searchsorted(truth.body_velocity.t, t - 1e-9), 0, len(truth.body_velocity.t) - 1)
+    index = np.clip(
+        np.searchsorted(truth.body_velocity.t, t - 1e-9), 0, len(truth.body_velocity.t) - 1
+    )
     bias = truth.history.block("gyro_bias")
     true_states = np.hstack([truth.body_velocity.values[index], bias.values[index]])
     errors = (true_states - states)[:, rows]
@@ -39,7 +41,11 @@ def vehicle_nees(estimate, sequence, rows: slice = slice(None)) -> tuple[np.ndar
 
 
 def run_once(seed: int, duration_s: float, association: str, overrides: dict, data: dict):
-    sequence = load_scenario("guerreiro-loop", seed, {"duration_s": str(duration_s), "ids": str(association == "ids").lower(), **data})
+    sequence = load_scenario(
+        "guerreiro-loop",
+        seed,
+        {"duration_s": str(duration_s), "ids": str(association == "ids").lower(), **data},
+    )
     config = SensorBasedConfig(association=association, **overrides)
     estimator = SensorBasedSlam(config, sequence)
     for measurement in sequence.measurements():
@@ -72,17 +78,27 @@ def main() -> None:
     length = min(len(r) for r in runs)
     stacked = np.stack([r[:length] for r in runs])
     result = averaged_nees(stacked, dof=3)
-    print(f"runs={args.runs} duration={args.duration}s association={args.association} set={overrides} data={data}")
+    print(
+        f"runs={args.runs} duration={args.duration}s association={args.association} set={overrides} data={data}"
+    )
     print(f"wall time {time.perf_counter() - start:.1f} s")
-    print(f"vehicle NEES (3 dof) averaged: mean over steps {np.mean(result.mean):.2f}, bounds [{result.lower:.2f}, {result.upper:.2f}], inside {100 * result.inside_fraction:.1f}% of {length} steps")
+    print(
+        f"vehicle NEES (3 dof) averaged: mean over steps {np.mean(result.mean):.2f}, bounds [{result.lower:.2f}, {result.upper:.2f}], inside {100 * result.inside_fraction:.1f}% of {length} steps"
+    )
     half = length // 2
-    print(f"  first half mean {np.mean(result.mean[:half]):.2f}, second half mean {np.mean(result.mean[half:]):.2f}")
+    print(
+        f"  first half mean {np.mean(result.mean[:half]):.2f}, second half mean {np.mean(result.mean[half:]):.2f}"
+    )
     velocity = averaged_nees(np.stack([r[:length] for r in velocity_runs]), dof=2)
     bias = averaged_nees(np.stack([r[:length] for r in bias_runs]), dof=1)
-    print(f"  velocity (2 dof): mean {np.mean(velocity.mean):.2f} inside {100 * velocity.inside_fraction:.1f}%; bias (1 dof): mean {np.mean(bias.mean):.2f} inside {100 * bias.inside_fraction:.1f}%")
+    print(
+        f"  velocity (2 dof): mean {np.mean(velocity.mean):.2f} inside {100 * velocity.inside_fraction:.1f}%; bias (1 dof): mean {np.mean(bias.mean):.2f} inside {100 * bias.inside_fraction:.1f}%"
+    )
     print(f"mean NIS/dof over runs {np.mean(nis):.3f}")
     if args.association == "jcbb":
-        print(f"association precision {np.mean(precision):.4f} (min {np.min(precision):.4f}), recall {np.mean(recall):.4f} (min {np.min(recall):.4f})")
+        print(
+            f"association precision {np.mean(precision):.4f} (min {np.min(precision):.4f}), recall {np.mean(recall):.4f} (min {np.min(recall):.4f})"
+        )
 
 
 if __name__ == "__main__":

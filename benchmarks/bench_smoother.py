@@ -72,10 +72,18 @@ def summary(label: str, result: dict) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--quick", action="store_true", help="shorter runs")
-    parser.add_argument("--kitti", action="store_true", help="also time the whole kitti-imu-gps run")
-    parser.add_argument("--parts", default="landmarks,factor,lag", help="comma list of: landmarks, factor, lag, victoria")
+    parser.add_argument(
+        "--kitti", action="store_true", help="also time the whole kitti-imu-gps run"
+    )
+    parser.add_argument(
+        "--parts",
+        default="landmarks,factor,lag",
+        help="comma list of: landmarks, factor, lag, victoria",
+    )
     args = parser.parse_args()
     parts = set(args.parts.split(","))
     duration = "5" if args.quick else "10"
@@ -101,15 +109,23 @@ def victoria_park() -> None:
 
 def landmark_scaling(duration: str) -> None:
     """Every landmark of sim:circle is in view at every scan: the dense worst case."""
-    print("== iSAM2 on sim:circle (10 Hz scans, 100 Hz IMU, all landmarks in view), time per keyframe")
+    print(
+        "== iSAM2 on sim:circle (10 Hz scans, 100 Hz IMU, all landmarks in view), time per keyframe"
+    )
     for count in (10, 50, 200):
-        sequence = load_dataset("sim:circle", 1, {"duration_s": duration, "landmark_count": str(count)})
-        summary(f"isam2, {count} landmarks", timed_run(SmootherIsam2, SmootherIsam2.Config(anchors=3), sequence))
+        sequence = load_dataset(
+            "sim:circle", 1, {"duration_s": duration, "landmark_count": str(count)}
+        )
+        summary(
+            f"isam2, {count} landmarks",
+            timed_run(SmootherIsam2, SmootherIsam2.Config(anchors=3), sequence),
+        )
         summary(
             f"isam2, {count} landmarks, no causal cov",
-            timed_run(SmootherIsam2, SmootherIsam2.Config(anchors=3, causal_covariances=False), sequence),
+            timed_run(
+                SmootherIsam2, SmootherIsam2.Config(anchors=3, causal_covariances=False), sequence
+            ),
         )
-
 
 
 def factor_comparison(duration: str) -> None:
@@ -120,27 +136,36 @@ def factor_comparison(duration: str) -> None:
         summary(f"isam2, {factor}", timed_run(SmootherIsam2, config, sequence))
 
 
-
 def fixed_lag_growth(quick: bool) -> None:
     print("== fixed lag (lag 2 s) on sim:circle with 30 landmarks: 1,000 vs 5,000 keyframes")
     lengths = (100.0, 500.0) if not quick else (20.0, 100.0)
     for length in lengths:
-        sequence = load_dataset("sim:circle", 1, {"duration_s": str(length), "landmark_count": "30"})
-        result = timed_run(SmootherFixedLag, SmootherFixedLag.Config(anchors=3, lag_s=2.0), sequence)
+        sequence = load_dataset(
+            "sim:circle", 1, {"duration_s": str(length), "landmark_count": "30"}
+        )
+        result = timed_run(
+            SmootherFixedLag, SmootherFixedLag.Config(anchors=3, lag_s=2.0), sequence
+        )
         summary(f"fixed-lag, {length:.0f} s", result)
         last = result["per_keyframe"][-500:]
         print(f"{'':38s} last 500 keyframes: median {1e3 * np.median(last):.2f} ms")
 
 
-
 def kitti_growth() -> None:
     print("== iSAM2 on kitti-imu-gps (keyframe every 10 IMU samples), per fifth of the run")
     sequence = load_dataset("kitti-imu-gps", 1, {})
-    result = timed_run(SmootherIsam2, SmootherIsam2.Config(keyframe_imu_stride=10, causal_covariances=False), sequence)
+    result = timed_run(
+        SmootherIsam2,
+        SmootherIsam2.Config(keyframe_imu_stride=10, causal_covariances=False),
+        sequence,
+    )
     summary("isam2 kitti", result)
     update = result["update"]
     n = len(update)
-    print("  inside update, mean per fifth [ms]:", [round(1e3 * float(update[q * n // 5 : (q + 1) * n // 5].mean()), 2) for q in range(5)])
+    print(
+        "  inside update, mean per fifth [ms]:",
+        [round(1e3 * float(update[q * n // 5 : (q + 1) * n // 5].mean()), 2) for q in range(5)],
+    )
 
 
 if __name__ == "__main__":

@@ -49,7 +49,9 @@ def main() -> None:
     extras = estimate.diagnostics.extras
     t = extras["vehicle_t"]
     nv = extras["vehicle_state"].shape[1]
-    std = np.sqrt(np.diagonal(extras["vehicle_covariance"].reshape(len(t), nv, nv), axis1=1, axis2=2))
+    std = np.sqrt(
+        np.diagonal(extras["vehicle_covariance"].reshape(len(t), nv, nv), axis1=1, axis2=2)
+    )
     figure, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     d = sequence.dimension
     for k in range(d):
@@ -62,7 +64,9 @@ def main() -> None:
     for ax in axes:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
-    axes[0].set_title(f"{args.dataset}: vehicle-variable uncertainty (cf. Guerreiro et al. Fig. 2a)")
+    axes[0].set_title(
+        f"{args.dataset}: vehicle-variable uncertainty (cf. Guerreiro et al. Fig. 2a)"
+    )
     figure.tight_layout()
     figure.savefig(args.out / "fig2_vehicle_std.png", dpi=120)
     plt.close(figure)
@@ -86,7 +90,9 @@ def main() -> None:
     plt.close(figure)
     inside = np.mean(average <= chi2.ppf(0.95, dof))
     print(f"wrote {args.out / 'fig2_vehicle_std.png'} and {args.out / 'fig4_nis.png'}")
-    print(f"average NIS per scan below the 95% threshold: {100 * inside:.1f}% of {len(times)} scans; overall mean NIS {np.mean(diagnostics.nis):.3f} ({dof} dof)")
+    print(
+        f"average NIS per scan below the 95% threshold: {100 * inside:.1f}% of {len(times)} scans; overall mean NIS {np.mean(diagnostics.nis):.3f} ({dof} dof)"
+    )
     print(f"vehicle std first/last: {std[0]} -> {std[-1]}")
 
 

@@ -37,7 +37,9 @@ def world_map(estimate, sequence) -> dict[int, np.ndarray]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--max-steps", type=int, default=None, help="shorten the file (default: all of it)")
+    parser.add_argument(
+        "--max-steps", type=int, default=None, help="shorten the file (default: all of it)"
+    )
     args = parser.parse_args()
     options = {} if args.max_steps is None else {"max_steps": str(args.max_steps)}
     sequence = load_dataset("victoria-park", 0, options)
@@ -55,8 +57,10 @@ def main() -> None:
     aligned = filtered @ rotation.T + translation
     distances = np.linalg.norm(aligned - reference, axis=1)
     print(f"common landmarks: {len(common)}")
-    print(f"map agreement after SE(2) alignment: rmse {np.sqrt(np.mean(distances**2)):.3f} m, "
-          f"median {np.median(distances):.3f} m, max {distances.max():.3f} m")
+    print(
+        f"map agreement after SE(2) alignment: rmse {np.sqrt(np.mean(distances**2)):.3f} m, "
+        f"median {np.median(distances):.3f} m, max {distances.max():.3f} m"
+    )
 
 
 if __name__ == "__main__":

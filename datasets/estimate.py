@@ -111,7 +111,9 @@ class Estimator(Protocol):
         """Finish and return the result."""
 
 
-def missing_sensors(options: tuple[frozenset[Sensor], ...], provided: frozenset[Sensor]) -> frozenset[Sensor]:
+def missing_sensors(
+    options: tuple[frozenset[Sensor], ...], provided: frozenset[Sensor]
+) -> frozenset[Sensor]:
     """Sensors missing for the closest alternative; empty when one alternative is satisfied."""
     gaps = [option - provided for option in options]
     return min(gaps, key=len) if gaps else frozenset()
@@ -129,7 +131,9 @@ class EstimateRecorder:
         self._pose_positions: list[np.ndarray] = []
         self._pose_rotations: list[np.ndarray] = []
         self._pose_covariances: list[np.ndarray | None] = []
-        self._blocks: dict[BlockName, tuple[Frame, list[float], list[np.ndarray], list[np.ndarray | None]]] = {}
+        self._blocks: dict[
+            BlockName, tuple[Frame, list[float], list[np.ndarray], list[np.ndarray | None]]
+        ] = {}
         self._landmark_snapshots: list[LandmarkMap] = []
         self._nis: list[tuple[float, float, int]] = []
         self._assoc: list[tuple[float, int, int, bool]] = []
@@ -137,14 +141,29 @@ class EstimateRecorder:
         self._events: list[Event] = []
         self._extras: dict[str, list[np.ndarray]] = {}
 
-    def pose(self, t: float, position: np.ndarray, rotation: np.ndarray | float, covariance: np.ndarray | None) -> None:
+    def pose(
+        self,
+        t: float,
+        position: np.ndarray,
+        rotation: np.ndarray | float,
+        covariance: np.ndarray | None,
+    ) -> None:
         """Record a pose (interface conventions: see ``Trajectory``)."""
         self._pose_t.append(float(t))
         self._pose_positions.append(np.array(position, dtype=float))
         self._pose_rotations.append(np.array(rotation, dtype=float))
-        self._pose_covariances.append(None if covariance is None else np.array(covariance, dtype=float))
+        self._pose_covariances.append(
+            None if covariance is None else np.array(covariance, dtype=float)
+        )
 
-    def block(self, name: BlockName, t: float, value: np.ndarray, covariance: np.ndarray | None, frame: Frame = Frame.BODY) -> None:
+    def block(
+        self,
+        name: BlockName,
+        t: float,
+        value: np.ndarray,
+        covariance: np.ndarray | None,
+        frame: Frame = Frame.BODY,
+    ) -> None:
         """Record one vector block value (velocity, gyro_bias, accel_bias)."""
         entry = self._blocks.setdefault(BlockName(name), (frame, [], [], []))
         entry[1].append(float(t))

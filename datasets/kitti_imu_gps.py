@@ -67,18 +67,41 @@ class KittiImuGpsOptions(BaseModel):
     """``--data`` options of ``kitti-imu-gps``."""
 
     model_config = ConfigDict(extra="forbid")
-    holdout_fraction: float = Field(0.2, ge=0.0, le=0.95, description="fraction of GPS fixes withheld from the stream for evaluation")
-    gps_sigma_m: float = Field(float(np.sqrt(0.07)), gt=0, description="GPS position std per axis [m] (gtsam example: variance 0.07)")
-    duration_s: float | None = Field(None, gt=0, description="use only the first duration_s seconds after the start")
-    max_imu_gap_s: float = Field(0.1, gt=0, description="an IMU gap longer than this before the start is skipped; after it, an error")
-    initial_velocity_sigma_m_s: float = Field(1.0, gt=0, description="std of the GPS-differenced initial velocity [m/s]")
-    initial_rotation_sigma_rad: float = Field(0.1, gt=0, description="std of the initial rotation (heading from GPS, level) [rad]")
-    folder: str | None = Field(None, description="folder with the three files (default: the gtsam wheel's Data folder)")
+    holdout_fraction: float = Field(
+        0.2,
+        ge=0.0,
+        le=0.95,
+        description="fraction of GPS fixes withheld from the stream for evaluation",
+    )
+    gps_sigma_m: float = Field(
+        float(np.sqrt(0.07)),
+        gt=0,
+        description="GPS position std per axis [m] (gtsam example: variance 0.07)",
+    )
+    duration_s: float | None = Field(
+        None, gt=0, description="use only the first duration_s seconds after the start"
+    )
+    max_imu_gap_s: float = Field(
+        0.1,
+        gt=0,
+        description="an IMU gap longer than this before the start is skipped; after it, an error",
+    )
+    initial_velocity_sigma_m_s: float = Field(
+        1.0, gt=0, description="std of the GPS-differenced initial velocity [m/s]"
+    )
+    initial_rotation_sigma_rad: float = Field(
+        0.1, gt=0, description="std of the initial rotation (heading from GPS, level) [rad]"
+    )
+    folder: str | None = Field(
+        None, description="folder with the three files (default: the gtsam wheel's Data folder)"
+    )
 
 
 def describe() -> list[str]:
     """Lines for ``workbench list --verbose``."""
-    return ["kitti-imu-gps  --data options:"] + ["  " + line for line in describe_model(KittiImuGpsOptions)]
+    return ["kitti-imu-gps  --data options:"] + [
+        "  " + line for line in describe_model(KittiImuGpsOptions)
+    ]
 
 
 def read_metadata(path: Path) -> dict[str, float]:
@@ -87,7 +110,9 @@ def read_metadata(path: Path) -> dict[str, float]:
         raise InputError(f"{path}: no such file")
     lines = [line.split() for line in path.read_text().splitlines() if line.strip()]
     if len(lines) < 2 or lines[0] != list(METADATA_FIELDS) or len(lines[1]) != len(METADATA_FIELDS):
-        raise InputError(f"{path}:1: expected the header {' '.join(METADATA_FIELDS)} and one line of {len(METADATA_FIELDS)} values")
+        raise InputError(
+            f"{path}:1: expected the header {' '.join(METADATA_FIELDS)} and one line of {len(METADATA_FIELDS)} values"
+        )
     try:
         values = [float(text) for text in lines[1]]
     except ValueError:
@@ -146,7 +171,9 @@ def load_folder(folder: Path, seed: int, config: KittiImuGpsOptions) -> Sequence
     """Build the sequence from the three files in ``folder``."""
     metadata = read_metadata(folder / METADATA_FILE)
     if any(abs(metadata[name]) > 1e-12 for name in METADATA_FIELDS[:6]):
-        raise InputError(f"{folder / METADATA_FILE}:2: the body-to-IMU pose is not identity; only an IMU at the body origin is supported")
+        raise InputError(
+            f"{folder / METADATA_FILE}:2: the body-to-IMU pose is not identity; only an IMU at the body origin is supported"
+        )
     imu = read_imu(folder / IMU_FILE)
     gps = read_gps(folder / GPS_FILE)
 
@@ -155,12 +182,16 @@ def load_folder(folder: Path, seed: int, config: KittiImuGpsOptions) -> Sequence
     # The first fix at or after the IMU becomes continuous (gtsam's example: fix #1).
     first = int(np.searchsorted(gps[:, 0], imu_start))
     if first + 1 >= len(gps):
-        raise InputError(f"{folder / GPS_FILE}: fewer than two GPS fixes after the IMU becomes continuous at t={imu_start:.3f} s")
+        raise InputError(
+            f"{folder / GPS_FILE}: fewer than two GPS fixes after the IMU becomes continuous at t={imu_start:.3f} s"
+        )
     t0 = gps[first, 0]
     end = gps[-1, 0] if config.duration_s is None else t0 + config.duration_s
     gps = gps[(gps[:, 0] >= t0) & (gps[:, 0] <= end)]
     if len(gps) < 2:
-        raise InputError(f"kitti-imu-gps: duration_s={config.duration_s} leaves fewer than two GPS fixes")
+        raise InputError(
+            f"kitti-imu-gps: duration_s={config.duration_s} leaves fewer than two GPS fixes"
+        )
     # Keep the last IMU sample at or before t0 so the first interval is covered.
     keep_from = max(int(np.searchsorted(imu[:, 0], t0, side="right")) - 1, 0)
     imu = imu[keep_from:]
@@ -213,7 +244,9 @@ def load_folder(folder: Path, seed: int, config: KittiImuGpsOptions) -> Sequence
                 yield GpsFix(t=float(row[0]), position=row[1:4].copy(), covariance=gps_cov.copy())
                 j += 1
 
-    truth = GroundTruth(history=StateHistory(), held_out_positions=(held_gps[:, 0].copy(), held_gps[:, 1:4].copy()))
+    truth = GroundTruth(
+        history=StateHistory(), held_out_positions=(held_gps[:, 0].copy(), held_gps[:, 1:4].copy())
+    )
     return Sequence(
         name="kitti-imu-gps",
         dimension=3,

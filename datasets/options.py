@@ -45,7 +45,8 @@ def build_model(model: type[ModelT], values: dict[str, object], context: str) ->
         return model.model_validate(values)
     except ValidationError as error:
         problems = "; ".join(
-            f"{'.'.join(str(part) for part in item['loc']) or '(config)'}: {item['msg']}" for item in error.errors()
+            f"{'.'.join(str(part) for part in item['loc']) or '(config)'}: {item['msg']}"
+            for item in error.errors()
         )
         known = ", ".join(model.model_fields)
         raise InputError(f"{context}: {problems} (known keys: {known})") from None
@@ -61,5 +62,9 @@ def describe_model(model: type[BaseModel]) -> list[str]:
     lines = []
     for name, info in model.model_fields.items():
         annotation = getattr(info.annotation, "__name__", str(info.annotation))
-        lines.append(f"{name} ({annotation}, default {info.default!r}): {info.description or ''}".rstrip(": "))
+        lines.append(
+            f"{name} ({annotation}, default {info.default!r}): {info.description or ''}".rstrip(
+                ": "
+            )
+        )
     return lines

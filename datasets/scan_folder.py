@@ -23,7 +23,12 @@ from datasets.bags.pointcloud2 import TIME_FIELDS, relative_point_seconds
 from datasets.bags.source import LidarSource, nest_dotted
 from datasets.errors import InputError
 from datasets.lidar.corners import CornerConfig
-from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, LidarSourceOptions, with_front_end
+from datasets.lidar.frontend import (
+    FrontEndSettings,
+    LidarFrontEnd,
+    LidarSourceOptions,
+    with_front_end,
+)
 from datasets.lidar.kiss_icp_odometry import KissIcpSettings
 from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model
@@ -33,8 +38,36 @@ from datasets.trajectory_io import read_tum
 
 log = logging.getLogger(__name__)
 SUFFIXES = (".bin", ".pcd", ".ply")
-_PCD_TYPES = {("F", 4): "f4", ("F", 8): "f8", ("U", 1): "u1", ("U", 2): "u2", ("U", 4): "u4", ("U", 8): "u8", ("I", 1): "i1", ("I", 2): "i2", ("I", 4): "i4", ("I", 8): "i8"}
-_PLY_TYPES = {"float": "f4", "float32": "f4", "double": "f8", "float64": "f8", "uchar": "u1", "uint8": "u1", "char": "i1", "int8": "i1", "ushort": "u2", "uint16": "u2", "short": "i2", "int16": "i2", "uint": "u4", "uint32": "u4", "int": "i4", "int32": "i4"}
+_PCD_TYPES = {
+    ("F", 4): "f4",
+    ("F", 8): "f8",
+    ("U", 1): "u1",
+    ("U", 2): "u2",
+    ("U", 4): "u4",
+    ("U", 8): "u8",
+    ("I", 1): "i1",
+    ("I", 2): "i2",
+    ("I", 4): "i4",
+    ("I", 8): "i8",
+}
+_PLY_TYPES = {
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
+    "uchar": "u1",
+    "uint8": "u1",
+    "char": "i1",
+    "int8": "i1",
+    "ushort": "u2",
+    "uint16": "u2",
+    "short": "i2",
+    "int16": "i2",
+    "uint": "u4",
+    "uint32": "u4",
+    "int": "i4",
+    "int32": "i4",
+}
 
 
 class ScanFolderOptions(LidarSourceOptions):
@@ -42,19 +75,32 @@ class ScanFolderOptions(LidarSourceOptions):
 
     model_config = ConfigDict(extra="forbid")
 
-    timestamps: str | None = Field(None, description="file with one frame time [s] per line (default: times.txt / timestamps.txt in the folder)")
+    timestamps: str | None = Field(
+        None,
+        description="file with one frame time [s] per line (default: times.txt / timestamps.txt in the folder)",
+    )
     rate_hz: float = Field(10.0, gt=0, description="frame rate when there is no timestamps file")
     ground_truth: str | None = Field(None, description="TUM file of true poses")
 
 
-def _cloud_from_records(records: np.ndarray, names: tuple[str, ...], stamp: float, path: Path, time_unit: str) -> tuple[np.ndarray, np.ndarray | None]:
+def _cloud_from_records(
+    records: np.ndarray, names: tuple[str, ...], stamp: float, path: Path, time_unit: str
+) -> tuple[np.ndarray, np.ndarray | None]:
     missing = [axis for axis in ("x", "y", "z") if axis not in names]
     if missing:
-        raise InputError(f"{path}: no {'/'.join(missing)} field (fields: {', '.join(names) or 'none'})")
+        raise InputError(
+            f"{path}: no {'/'.join(missing)} field (fields: {', '.join(names) or 'none'})"
+        )
     points = np.column_stack([records["x"], records["y"], records["z"]]).astype(np.float64)
     time_field = next((name for name in TIME_FIELDS if name in names), None)
-    times = relative_point_seconds(np.asarray(records[time_field]), stamp, time_unit) if time_field else None
-    finite = np.all(np.isfinite(points), axis=1) & (np.isfinite(times) if times is not None else True)
+    times = (
+        relative_point_seconds(np.asarray(records[time_field]), stamp, time_unit)
+        if time_field
+        else None
+    )
+    finite = np.all(np.isfinite(points), axis=1) & (
+        np.isfinite(times) if times is not None else True
+    )
     return points[finite], (times[finite] if times is not None else None)
 
 
@@ -62,12 +108,16 @@ def read_bin(path: Path) -> np.ndarray:
     """KITTI velodyne scan: float32 (x, y, z, intensity) records -> (n, 3)."""
     raw = np.fromfile(path, dtype="<f4")
     if raw.size % 4:
-        raise InputError(f"{path}: {raw.size * 4} bytes is not a whole number of KITTI points (16 bytes each)")
+        raise InputError(
+            f"{path}: {raw.size * 4} bytes is not a whole number of KITTI points (16 bytes each)"
+        )
     points = raw.reshape(-1, 4)[:, :3].astype(np.float64)
     return points[np.all(np.isfinite(points), axis=1)]
 
 
-def read_pcd(path: Path, stamp: float, time_unit: str = "auto") -> tuple[np.ndarray, np.ndarray | None]:
+def read_pcd(
+    path: Path, stamp: float, time_unit: str = "auto"
+) -> tuple[np.ndarray, np.ndarray | None]:
     """PCD (ascii / binary) -> points (n, 3), per-point times or None."""
     blob = path.read_bytes()
     header: dict[str, list[str]] = {}
@@ -89,30 +139,52 @@ def read_pcd(path: Path, stamp: float, time_unit: str = "auto") -> tuple[np.ndar
         sizes = [int(v) for v in header["SIZE"]]
         kinds = header["TYPE"]
         counts = [int(v) for v in header.get("COUNT", ["1"] * len(names))]
-        points_count = int(header["POINTS"][0]) if "POINTS" in header else int(header["WIDTH"][0]) * int(header.get("HEIGHT", ["1"])[0])
-        formats = [(_PCD_TYPES[(kind, size)], (count,)) if count > 1 else _PCD_TYPES[(kind, size)] for kind, size, count in zip(kinds, sizes, counts)]
+        points_count = (
+            int(header["POINTS"][0])
+            if "POINTS" in header
+            else int(header["WIDTH"][0]) * int(header.get("HEIGHT", ["1"])[0])
+        )
+        formats = [
+            (_PCD_TYPES[(kind, size)], (count,)) if count > 1 else _PCD_TYPES[(kind, size)]
+            for kind, size, count in zip(kinds, sizes, counts)
+        ]
     except (KeyError, ValueError, IndexError) as error:
-        raise InputError(f"{path}: malformed PCD header ({type(error).__name__}: {error})") from None
+        raise InputError(
+            f"{path}: malformed PCD header ({type(error).__name__}: {error})"
+        ) from None
     names = tuple(name if name != "_" else f"_pad{index}" for index, name in enumerate(names))
     mode = header["DATA"][0].lower()
     if mode == "ascii":
         text = blob[offset:].decode("ascii", errors="replace")
-        table = np.loadtxt(text.splitlines(), ndmin=2) if text.strip() else np.zeros((0, sum(counts)))
+        table = (
+            np.loadtxt(text.splitlines(), ndmin=2) if text.strip() else np.zeros((0, sum(counts)))
+        )
         columns = np.cumsum([0] + counts)
         if table.shape[1] != columns[-1]:
-            raise InputError(f"{path}: PCD ascii rows have {table.shape[1]} values, header declares {columns[-1]}")
+            raise InputError(
+                f"{path}: PCD ascii rows have {table.shape[1]} values, header declares {columns[-1]}"
+            )
         records = {name: table[:, columns[k]] for k, name in enumerate(names)}
         return _cloud_from_records(records, names, stamp, path, time_unit)  # type: ignore[arg-type]
     if mode == "binary":
-        dtype = np.dtype({"names": list(names), "formats": ["<" + f if isinstance(f, str) else ("<" + f[0], f[1]) for f in formats]})
+        dtype = np.dtype(
+            {
+                "names": list(names),
+                "formats": ["<" + f if isinstance(f, str) else ("<" + f[0], f[1]) for f in formats],
+            }
+        )
         if len(blob) - offset < dtype.itemsize * points_count:
-            raise InputError(f"{path}: PCD binary data is {len(blob) - offset} bytes, header declares {dtype.itemsize * points_count}")
+            raise InputError(
+                f"{path}: PCD binary data is {len(blob) - offset} bytes, header declares {dtype.itemsize * points_count}"
+            )
         records = np.frombuffer(blob, dtype=dtype, count=points_count, offset=offset)
         return _cloud_from_records(records, names, stamp, path, time_unit)
     raise InputError(f"{path}: PCD DATA {mode} is not supported (use ascii or binary)")
 
 
-def read_ply(path: Path, stamp: float, time_unit: str = "auto") -> tuple[np.ndarray, np.ndarray | None]:
+def read_ply(
+    path: Path, stamp: float, time_unit: str = "auto"
+) -> tuple[np.ndarray, np.ndarray | None]:
     """PLY (ascii / binary) vertex element -> points (n, 3), per-point times or None."""
     blob = path.read_bytes()
     end = blob.find(b"end_header")
@@ -149,7 +221,9 @@ def read_ply(path: Path, stamp: float, time_unit: str = "auto") -> tuple[np.ndar
         order = "<" if fmt == "binary_little_endian" else ">"
         dtype = np.dtype({"names": names, "formats": [order + f for f in formats]})
         if len(blob) - body < dtype.itemsize * count:
-            raise InputError(f"{path}: PLY data is {len(blob) - body} bytes, header declares {dtype.itemsize * count}")
+            raise InputError(
+                f"{path}: PLY data is {len(blob) - body} bytes, header declares {dtype.itemsize * count}"
+            )
         records = np.frombuffer(blob, dtype=dtype, count=count, offset=body)
         return _cloud_from_records(records, tuple(names), stamp, path, time_unit)
     raise InputError(f"{path}: unknown PLY format '{fmt}'")
@@ -171,7 +245,11 @@ def read_scan(path: Path, stamp: float, time_unit: str = "auto") -> PointCloud:
 
 def frame_times(folder: Path, files: list[Path], settings: ScanFolderOptions) -> np.ndarray:
     """Frame times [s] (module docstring); ``InputError`` for a bad or short timestamps file."""
-    candidates = [Path(settings.timestamps)] if settings.timestamps else [folder / "times.txt", folder / "timestamps.txt"]
+    candidates = (
+        [Path(settings.timestamps)]
+        if settings.timestamps
+        else [folder / "times.txt", folder / "timestamps.txt"]
+    )
     for candidate in candidates:
         if candidate.is_file():
             values = []
@@ -180,7 +258,9 @@ def frame_times(folder: Path, files: list[Path], settings: ScanFolderOptions) ->
                     try:
                         values.append(float(line.split()[0]))
                     except ValueError:
-                        raise InputError(f"{candidate}:{number}: not a time '{line.strip()}'") from None
+                        raise InputError(
+                            f"{candidate}:{number}: not a time '{line.strip()}'"
+                        ) from None
             times = np.array(values)
             if len(times) < len(files):
                 raise InputError(f"{candidate}: {len(times)} times for {len(files)} scans")
@@ -192,10 +272,14 @@ def frame_times(folder: Path, files: list[Path], settings: ScanFolderOptions) ->
 
 def load_scans(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
     """``scans:FOLDER`` -> ``Sequence`` with POINT_CLOUD, ODOMETRY, LANDMARKS."""
-    return scans_sequence(argument, build_model(ScanFolderOptions, nest_dotted(options), f"scans:{argument}"))[0]
+    return scans_sequence(
+        argument, build_model(ScanFolderOptions, nest_dotted(options), f"scans:{argument}")
+    )[0]
 
 
-def scans_sequence(argument: str | None, settings: ScanFolderOptions) -> tuple[Sequence, LidarSource]:
+def scans_sequence(
+    argument: str | None, settings: ScanFolderOptions
+) -> tuple[Sequence, LidarSource]:
     """The sequence of a scan folder and its ``LidarSource``."""
     if not argument:
         raise InputError("dataset scans needs a folder: scans:FOLDER")
@@ -207,7 +291,15 @@ def scans_sequence(argument: str | None, settings: ScanFolderOptions) -> tuple[S
         raise InputError(f"{folder}: no .bin, .pcd or .ply scans")
     times = frame_times(folder, files, settings)
     order_problem = np.flatnonzero(np.diff(times) <= 0)
-    front_end = LidarFrontEnd(FrontEndSettings(odometry=settings.odometry, corners=settings.corners, warmup_frames=settings.warmup_frames, kiss=settings.kiss, corner=settings.corner))
+    front_end = LidarFrontEnd(
+        FrontEndSettings(
+            odometry=settings.odometry,
+            corners=settings.corners,
+            warmup_frames=settings.warmup_frames,
+            kiss=settings.kiss,
+            corner=settings.corner,
+        )
+    )
     source = LidarSource(front_end)
 
     def clouds():
@@ -215,7 +307,9 @@ def scans_sequence(argument: str | None, settings: ScanFolderOptions) -> tuple[S
         last = -np.inf
         for path, stamp in zip(files, times):
             if stamp <= last:
-                report.skip(str(folder), f"time not after the previous scan ({path.name})", float(stamp))
+                report.skip(
+                    str(folder), f"time not after the previous scan ({path.name})", float(stamp)
+                )
                 continue
             cloud = read_scan(path, float(stamp), settings.point_time_unit)
             if len(cloud.points) == 0:
@@ -232,16 +326,29 @@ def scans_sequence(argument: str | None, settings: ScanFolderOptions) -> tuple[S
     ground_truth = None
     if settings.ground_truth:
         ground_truth = GroundTruth(history=StateHistory(pose=read_tum(settings.ground_truth)))
-    sensors = ({Sensor.POINT_CLOUD} if settings.point_clouds else set()) | ({Sensor.ODOMETRY} if settings.odometry else set()) | ({Sensor.LANDMARKS} if settings.corners else set())
+    sensors = (
+        ({Sensor.POINT_CLOUD} if settings.point_clouds else set())
+        | ({Sensor.ODOMETRY} if settings.odometry else set())
+        | ({Sensor.LANDMARKS} if settings.corners else set())
+    )
     return Sequence(
         name=f"scans:{argument}",
         dimension=3,
         sensors=frozenset(sensors),
         stream=stream,
         ground_truth=ground_truth,
-        noise=NoiseSpec(landmark_sigma_m=settings.corner.range_sigma_m, rate_hz={"lidar": settings.rate_hz}),
-        initial_state=InitialState(t=float(times[0]), position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0])),
-        metadata={"source": str(folder), "files": len(files), "time_order_problems": int(order_problem.size), "options": settings.model_dump(mode="json")},
+        noise=NoiseSpec(
+            landmark_sigma_m=settings.corner.range_sigma_m, rate_hz={"lidar": settings.rate_hz}
+        ),
+        initial_state=InitialState(
+            t=float(times[0]), position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0])
+        ),
+        metadata={
+            "source": str(folder),
+            "files": len(files),
+            "time_order_problems": int(order_problem.size),
+            "options": settings.model_dump(mode="json"),
+        },
     ), source
 
 
@@ -249,4 +356,8 @@ def describe() -> list[str]:
     """Option lines for ``workbench list --verbose``."""
     from datasets.options import describe_model
 
-    return describe_model(ScanFolderOptions) + [f"kiss.{line}" for line in describe_model(KissIcpSettings)] + [f"corner.{line}" for line in describe_model(CornerConfig)]
+    return (
+        describe_model(ScanFolderOptions)
+        + [f"kiss.{line}" for line in describe_model(KissIcpSettings)]
+        + [f"corner.{line}" for line in describe_model(CornerConfig)]
+    )

@@ -50,11 +50,15 @@ class StateBlock:
 
     def __post_init__(self) -> None:
         if self.values.ndim != 2 or self.values.shape[0] != len(self.t):
-            raise ValueError(f"StateBlock values must be (N, k) with N={len(self.t)}, got {self.values.shape}")
+            raise ValueError(
+                f"StateBlock values must be (N, k) with N={len(self.t)}, got {self.values.shape}"
+            )
         if self.covariances is not None:
             k = self.values.shape[1]
             if self.covariances.shape != (len(self.t), k, k):
-                raise ValueError(f"StateBlock covariances must be {(len(self.t), k, k)}, got {self.covariances.shape}")
+                raise ValueError(
+                    f"StateBlock covariances must be {(len(self.t), k, k)}, got {self.covariances.shape}"
+                )
 
 
 @dataclass(frozen=True)
@@ -78,7 +82,9 @@ class LandmarkMap:
 
     def __post_init__(self) -> None:
         if self.positions.ndim != 2 or self.positions.shape[0] != len(self.ids):
-            raise ValueError(f"LandmarkMap positions must be (k, d) with k={len(self.ids)}, got {self.positions.shape}")
+            raise ValueError(
+                f"LandmarkMap positions must be (k, d) with k={len(self.ids)}, got {self.positions.shape}"
+            )
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -88,7 +94,7 @@ class LandmarkMap:
         return int(self.positions.shape[1])
 
     @staticmethod
-    def empty(dimension: int, frame: Frame = Frame.WORLD, t: float | None = None) -> "LandmarkMap":
+    def empty(dimension: int, frame: Frame = Frame.WORLD, t: float | None = None) -> LandmarkMap:
         return LandmarkMap(
             ids=np.zeros(0, dtype=int),
             positions=np.zeros((0, dimension)),

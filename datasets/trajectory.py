@@ -76,7 +76,7 @@ class Trajectory:
         poses[:, :d, d] = self.positions
         return poses
 
-    def select(self, indices: np.ndarray | slice) -> "Trajectory":
+    def select(self, indices: np.ndarray | slice) -> Trajectory:
         """A new trajectory with the poses at ``indices``."""
         return Trajectory(
             t=self.t[indices],
@@ -85,7 +85,7 @@ class Trajectory:
             covariances=None if self.covariances is None else self.covariances[indices],
         )
 
-    def without_covariances(self) -> "Trajectory":
+    def without_covariances(self) -> Trajectory:
         """The same poses with ``covariances=None``."""
         return replace(self, covariances=None)
 

@@ -78,7 +78,9 @@ def read_tum(path: str | Path) -> Trajectory:
             continue
         fields = stripped.replace(",", " ").split()
         if len(fields) != 8:
-            raise InputError(f"{path}:{line_number}: expected 8 numbers (t x y z qx qy qz qw), got {len(fields)}")
+            raise InputError(
+                f"{path}:{line_number}: expected 8 numbers (t x y z qx qy qz qw), got {len(fields)}"
+            )
         try:
             values = [float(field) for field in fields]
         except ValueError as error:
@@ -118,7 +120,9 @@ def read_kitti(path: str | Path, t: np.ndarray | None = None) -> Trajectory:
             continue
         fields = line.split()
         if len(fields) != 12:
-            raise InputError(f"{path}:{line_number}: expected 12 numbers (3x4 pose), got {len(fields)}")
+            raise InputError(
+                f"{path}:{line_number}: expected 12 numbers (3x4 pose), got {len(fields)}"
+            )
         try:
             rows.append([float(field) for field in fields])
         except ValueError as error:

@@ -73,27 +73,55 @@ class UtiasOptions(BaseModel):
     """``--data`` options of ``utias:FOLDER#robotN``."""
 
     model_config = ConfigDict(extra="forbid")
-    ids: bool = Field(True, description="attach the barcodes to the scans (false: withheld, association by the estimator)")
-    bearing_sigma_rad: float = Field(0.03, gt=0, description="bearing noise std [rad] (measured on this data: about 0.03)")
-    range_sigma_fraction: float = Field(0.05, ge=0, description="range noise std as a fraction of the range")
-    range_sigma_floor_m: float = Field(0.05, gt=0, description="lower bound of the range noise std [m]")
+    ids: bool = Field(
+        True,
+        description="attach the barcodes to the scans (false: withheld, association by the estimator)",
+    )
+    bearing_sigma_rad: float = Field(
+        0.03, gt=0, description="bearing noise std [rad] (measured on this data: about 0.03)"
+    )
+    range_sigma_fraction: float = Field(
+        0.05, ge=0, description="range noise std as a fraction of the range"
+    )
+    range_sigma_floor_m: float = Field(
+        0.05, gt=0, description="lower bound of the range noise std [m]"
+    )
     odometry_sigma_v_m_s: float = Field(
-        0.15, gt=0, description="per-sample white-noise std of the forward velocity [m/s] (fits the 20 s drift vs Vicon of robot 1)"
+        0.15,
+        gt=0,
+        description="per-sample white-noise std of the forward velocity [m/s] (fits the 20 s drift vs Vicon of robot 1)",
     )
     odometry_sigma_omega_rad_s: float = Field(
-        0.3, gt=0, description="per-sample white-noise std of the angular velocity [rad/s] (fits the 1-20 s heading drift vs Vicon of robot 1)"
+        0.3,
+        gt=0,
+        description="per-sample white-noise std of the angular velocity [rad/s] (fits the 1-20 s heading drift vs Vicon of robot 1)",
     )
     grid_step_s: float = Field(0.02, gt=0, description="row spacing of the resampled files [s]")
-    drop_stale_repeats: bool = Field(True, description="drop a sighting identical to the previous one of the same barcode")
-    fix_swapped_labels: bool = Field(True, description="ground truth: swap the survey positions of barcodes 18 and 61 (see module doc)")
-    max_heading_rate_rad_s: float = Field(3.0, gt=0, description="Vicon heading changes faster than this are glitches")
-    duration_s: float | None = Field(None, gt=0, description="use only the first duration_s seconds")
-    odometry_gap_s: float = Field(0.5, gt=0, description="odometry gaps longer than this are listed in the metadata")
+    drop_stale_repeats: bool = Field(
+        True, description="drop a sighting identical to the previous one of the same barcode"
+    )
+    fix_swapped_labels: bool = Field(
+        True,
+        description="ground truth: swap the survey positions of barcodes 18 and 61 (see module doc)",
+    )
+    max_heading_rate_rad_s: float = Field(
+        3.0, gt=0, description="Vicon heading changes faster than this are glitches"
+    )
+    duration_s: float | None = Field(
+        None, gt=0, description="use only the first duration_s seconds"
+    )
+    odometry_gap_s: float = Field(
+        0.5, gt=0, description="odometry gaps longer than this are listed in the metadata"
+    )
     odometry_delay_s: float = Field(
-        0.0, ge=0, description="calibration: shift the odometry (and gyro) later by this [s] (the commanded velocity leads the motion by about 0.16 s)"
+        0.0,
+        ge=0,
+        description="calibration: shift the odometry (and gyro) later by this [s] (the commanded velocity leads the motion by about 0.16 s)",
     )
     odometry_speed_scale: float = Field(
-        1.0, gt=0, description="calibration: multiply the forward velocity (the commanded speed overstates the motion by several percent)"
+        1.0,
+        gt=0,
+        description="calibration: multiply the forward velocity (the commanded speed overstates the motion by several percent)",
     )
 
 
@@ -151,7 +179,9 @@ def printing_resolution(t: np.ndarray, significant_digits: int = 5) -> np.ndarra
     return 10.0 ** (magnitude - (significant_digits - 1))
 
 
-def grid_times(printed: np.ndarray, step_s: float, decimals: np.ndarray | None = None) -> np.ndarray | None:
+def grid_times(
+    printed: np.ndarray, step_s: float, decimals: np.ndarray | None = None
+) -> np.ndarray | None:
     """Row-index times ``t0 + i * step_s`` when every printed time agrees within its printing
     resolution, else None.
 
@@ -167,7 +197,9 @@ def grid_times(printed: np.ndarray, step_s: float, decimals: np.ndarray | None =
     return grid if np.all(np.abs(printed - grid) <= tolerance) else None
 
 
-def repair_heading_glitches(heading: np.ndarray, step_s: np.ndarray | float, max_rate_rad_s: float) -> tuple[np.ndarray, int]:
+def repair_heading_glitches(
+    heading: np.ndarray, step_s: np.ndarray | float, max_rate_rad_s: float
+) -> tuple[np.ndarray, int]:
     """Replace runs of headings that jump faster than ``max_rate_rad_s`` by the short-way
     interpolation between the good samples around them.
 
@@ -185,7 +217,9 @@ def repair_heading_glitches(heading: np.ndarray, step_s: np.ndarray | float, max
         (repaired headings wrapped to [-pi, pi), number of samples replaced).
     """
     heading = np.asarray(heading, dtype=float)
-    times = np.arange(len(heading)) * step_s if np.isscalar(step_s) else np.asarray(step_s, dtype=float)
+    times = (
+        np.arange(len(heading)) * step_s if np.isscalar(step_s) else np.asarray(step_s, dtype=float)
+    )
     repaired = heading.copy()
     replaced = 0
     last_good = 0
@@ -204,7 +238,10 @@ def repair_heading_glitches(heading: np.ndarray, step_s: np.ndarray | float, max
 
 
 def range_bearing_to_points(
-    ranges_m: np.ndarray, bearings_rad: np.ndarray, range_sigma_m: np.ndarray, bearing_sigma_rad: float
+    ranges_m: np.ndarray,
+    bearings_rad: np.ndarray,
+    range_sigma_m: np.ndarray,
+    bearing_sigma_rad: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Body-frame points and their first-order covariances from range/bearing.
 
@@ -231,7 +268,9 @@ def range_bearing_to_points(
 def parse_argument(argument: str | None) -> tuple[Path, int]:
     """``'FOLDER#robotN'`` -> (folder, N); ``InputError`` otherwise."""
     if not argument or "#" not in argument:
-        raise InputError(f"utias: expected utias:FOLDER#robotN (e.g. utias:../shared/data/utias-mrclam1#robot1), got '{argument}'")
+        raise InputError(
+            f"utias: expected utias:FOLDER#robotN (e.g. utias:../shared/data/utias-mrclam1#robot1), got '{argument}'"
+        )
     folder_text, _, robot_text = argument.rpartition("#")
     robot_text = robot_text.strip().lower()
     if not robot_text.startswith("robot") or not robot_text[5:].isdigit():
@@ -246,7 +285,9 @@ def describe() -> list[str]:
     """Lines for ``workbench list --verbose``."""
     from datasets.options import describe_model
 
-    return ["utias:FOLDER#robotN  any MRCLAM folder; --data options:"] + ["  " + line for line in describe_model(UtiasOptions)]
+    return ["utias:FOLDER#robotN  any MRCLAM folder; --data options:"] + [
+        "  " + line for line in describe_model(UtiasOptions)
+    ]
 
 
 def load(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
@@ -264,19 +305,25 @@ def _barcode_tables(folder: Path) -> tuple[dict[int, int], dict[int, np.ndarray]
         if int(barcode) in subject_of:
             raise InputError(f"{barcodes.path}:{line}: barcode {int(barcode)} listed twice")
         subject_of[int(barcode)] = int(subject)
-    survey = read_table(folder / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
+    survey = read_table(
+        folder / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std")
+    )
     positions = {int(row[0]): row[1:3].copy() for row in survey.values}
     return subject_of, positions
 
 
-def load_mrclam(folder: Path, robot: int, config: UtiasOptions, name: str | None = None) -> Sequence:
+def load_mrclam(
+    folder: Path, robot: int, config: UtiasOptions, name: str | None = None
+) -> Sequence:
     """Build the ``Sequence`` of robot ``robot`` in the MRCLAM folder ``folder``."""
     name = name or f"utias:{folder}#robot{robot}"
     counts: dict[str, int] = {}
     subject_of, surveyed = _barcode_tables(folder)
     odometry = read_table(folder / f"Robot{robot}_Odometry.dat", ("time", "v", "omega"))
     truth = read_table(folder / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "heading"))
-    sightings = read_table(folder / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
+    sightings = read_table(
+        folder / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing")
+    )
 
     step = config.grid_step_s
     odo_grid = grid_times(odometry.values[:, 0], step, odometry.first_decimals)
@@ -289,8 +336,12 @@ def load_mrclam(folder: Path, robot: int, config: UtiasOptions, name: str | None
         meas_t = np.round((sightings.values[:, 0] - origin) / step) * step + origin
     else:
         time_source = "printed"
-        odo_t, odo_values, counts["odometry_time_not_increasing"] = _increasing(odometry.values[:, 0], odometry.values[:, 1:])
-        truth_t, truth_values, counts["groundtruth_time_not_increasing"] = _increasing(truth.values[:, 0], truth.values[:, 1:])
+        odo_t, odo_values, counts["odometry_time_not_increasing"] = _increasing(
+            odometry.values[:, 0], odometry.values[:, 1:]
+        )
+        truth_t, truth_values, counts["groundtruth_time_not_increasing"] = _increasing(
+            truth.values[:, 0], truth.values[:, 1:]
+        )
         meas_t = sightings.values[:, 0].copy()
         origin = min(odo_t[0], truth_t[0])
     odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
@@ -300,16 +351,24 @@ def load_mrclam(folder: Path, robot: int, config: UtiasOptions, name: str | None
         keep = truth_t <= config.duration_s
         truth_t, truth_values = truth_t[keep], truth_values[keep]
     if len(odo_t) < 2 or len(truth_t) < 2:
-        raise InputError(f"{odometry.path}: fewer than two odometry or ground-truth rows in the selected time span")
+        raise InputError(
+            f"{odometry.path}: fewer than two odometry or ground-truth rows in the selected time span"
+        )
 
     scans, scan_ids, meas_counts = _build_scans(sightings, meas_t, odo_t, subject_of, config)
     counts.update(meas_counts)
     gaps = np.diff(odo_t)
-    long_gaps = [(float(odo_t[i]), float(gaps[i])) for i in np.flatnonzero(gaps > config.odometry_gap_s)]
+    long_gaps = [
+        (float(odo_t[i]), float(gaps[i])) for i in np.flatnonzero(gaps > config.odometry_gap_s)
+    ]
 
-    heading, repaired = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
+    heading, repaired = repair_heading_glitches(
+        truth_values[:, 2], truth_t, config.max_heading_rate_rad_s
+    )
     counts["vicon_heading_samples_repaired"] = repaired
-    ground_truth = _ground_truth(truth_t, truth_values[:, :2], heading, subject_of, surveyed, config, scan_ids)
+    ground_truth = _ground_truth(
+        truth_t, truth_values[:, :2], heading, subject_of, surveyed, config, scan_ids
+    )
 
     noise = NoiseSpec(
         gyro_noise_density=config.odometry_sigma_omega_rad_s * np.sqrt(step),
@@ -346,10 +405,14 @@ def load_mrclam(folder: Path, robot: int, config: UtiasOptions, name: str | None
         "robot": robot,
         "time_source": time_source,
         "time_origin_s": float(origin),
-        "measurement_time_uncertainty_s": 0.05 if time_source == "row_grid" and odo_t[-1] + origin >= 1000 else 0.0,
+        "measurement_time_uncertainty_s": 0.05
+        if time_source == "row_grid" and odo_t[-1] + origin >= 1000
+        else 0.0,
         "counts": {key: int(value) for key, value in counts.items()},
         "odometry_gaps": long_gaps,
-        "swapped_labels": "fixed (barcode 18 <-> 61 survey positions)" if config.fix_swapped_labels else "as in the file",
+        "swapped_labels": "fixed (barcode 18 <-> 61 survey positions)"
+        if config.fix_swapped_labels
+        else "as in the file",
         "options": config.model_dump(),
         "scans": len(scans),
     }
@@ -366,7 +429,11 @@ def load_mrclam(folder: Path, robot: int, config: UtiasOptions, name: str | None
 
 
 def _with_ids(scan: LandmarkScan, visible: bool) -> LandmarkScan:
-    return scan if visible else LandmarkScan(t=scan.t, points=scan.points, covariances=scan.covariances, ids=None)
+    return (
+        scan
+        if visible
+        else LandmarkScan(t=scan.t, points=scan.points, covariances=scan.covariances, ids=None)
+    )
 
 
 def _increasing(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -381,11 +448,23 @@ def _increasing(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def _build_scans(
-    sightings: _Table, meas_t: np.ndarray, odo_t: np.ndarray, subject_of: dict[int, int], config: UtiasOptions
+    sightings: _Table,
+    meas_t: np.ndarray,
+    odo_t: np.ndarray,
+    subject_of: dict[int, int],
+    config: UtiasOptions,
 ) -> tuple[list[LandmarkScan], tuple[tuple[float, np.ndarray], ...], dict[str, int]]:
     """Group sightings into scans (one per time), dropping what is not a landmark sighting."""
     counts = dict.fromkeys(
-        ("robot_barcodes", "unknown_barcodes", "stale_repeats", "duplicate_sightings", "out_of_range_times", "time_going_back", "nonpositive_range"),
+        (
+            "robot_barcodes",
+            "unknown_barcodes",
+            "stale_repeats",
+            "duplicate_sightings",
+            "out_of_range_times",
+            "time_going_back",
+            "nonpositive_range",
+        ),
         0,
     )
     last_seen: dict[int, tuple[float, float]] = {}
@@ -431,7 +510,9 @@ def _build_scans(
         ranges = np.array([group[i][0] for i in ids])
         bearings = np.array([group[i][1] for i in ids])
         sigma_r = np.maximum(config.range_sigma_floor_m, config.range_sigma_fraction * ranges)
-        points, covariances = range_bearing_to_points(ranges, bearings, sigma_r, config.bearing_sigma_rad)
+        points, covariances = range_bearing_to_points(
+            ranges, bearings, sigma_r, config.bearing_sigma_rad
+        )
         scans.append(LandmarkScan(t=key, points=points, covariances=covariances, ids=ids))
         scan_ids.append((key, ids))
     return scans, tuple(scan_ids), counts
@@ -447,18 +528,26 @@ def _ground_truth(
     scan_ids: tuple[tuple[float, np.ndarray], ...],
 ) -> GroundTruth:
     """Vicon poses, finite-difference velocities, surveyed map keyed by barcode."""
-    world_velocity = np.stack([np.gradient(positions[:, 0], t), np.gradient(positions[:, 1], t)], axis=-1)
+    world_velocity = np.stack(
+        [np.gradient(positions[:, 0], t), np.gradient(positions[:, 1], t)], axis=-1
+    )
     body_velocity = np.einsum("nji,nj->ni", rot2_batch(heading), world_velocity)
     location = dict(surveyed)
     if config.fix_swapped_labels and all(s in location for s in SWAPPED_LABEL_SUBJECTS):
         first, second = SWAPPED_LABEL_SUBJECTS
         location[first], location[second] = surveyed[second], surveyed[first]
     barcode_of = {subject: barcode for barcode, subject in subject_of.items()}
-    ids = np.array(sorted(barcode_of[s] for s in location if s in barcode_of and s not in ROBOT_SUBJECTS), dtype=int)
+    ids = np.array(
+        sorted(barcode_of[s] for s in location if s in barcode_of and s not in ROBOT_SUBJECTS),
+        dtype=int,
+    )
     subject_by_barcode = {barcode_of[s]: s for s in location if s in barcode_of}
     landmark_positions = np.array([location[subject_by_barcode[i]] for i in ids]).reshape(-1, 2)
     pose = Trajectory(t=t.copy(), positions=positions.copy(), rotations=heading.copy())
-    history = StateHistory(pose=pose, blocks={BlockName.VELOCITY: StateBlock(t.copy(), world_velocity, None, Frame.WORLD)})
+    history = StateHistory(
+        pose=pose,
+        blocks={BlockName.VELOCITY: StateBlock(t.copy(), world_velocity, None, Frame.WORLD)},
+    )
     return GroundTruth(
         history=history,
         landmarks=LandmarkMap(ids=ids, positions=landmark_positions, frame=Frame.WORLD),

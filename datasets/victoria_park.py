@@ -50,10 +50,21 @@ class VictoriaParkOptions(BaseModel):
     """``--data`` options of ``victoria-park``."""
 
     model_config = ConfigDict(extra="forbid")
-    ids: bool = Field(True, description="attach the file's landmark indices to the scans (false: withheld)")
-    step_s: float = Field(0.2, gt=0, description="nominal time between consecutive poses [s] (the file has no time stamps)")
-    max_steps: int | None = Field(None, gt=0, description="use only the first max_steps odometry steps")
-    path: str | None = Field(None, description="another file in the same format (default: the gtsam wheel's Data/victoria_park.txt)")
+    ids: bool = Field(
+        True, description="attach the file's landmark indices to the scans (false: withheld)"
+    )
+    step_s: float = Field(
+        0.2,
+        gt=0,
+        description="nominal time between consecutive poses [s] (the file has no time stamps)",
+    )
+    max_steps: int | None = Field(
+        None, gt=0, description="use only the first max_steps odometry steps"
+    )
+    path: str | None = Field(
+        None,
+        description="another file in the same format (default: the gtsam wheel's Data/victoria_park.txt)",
+    )
 
 
 def default_path() -> Path:
@@ -65,7 +76,9 @@ def default_path() -> Path:
 
 def describe() -> list[str]:
     """Lines for ``workbench list --verbose``."""
-    return ["victoria-park  --data options:"] + ["  " + line for line in describe_model(VictoriaParkOptions)]
+    return ["victoria-park  --data options:"] + [
+        "  " + line for line in describe_model(VictoriaParkOptions)
+    ]
 
 
 def load(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
@@ -75,7 +88,9 @@ def load(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
     return load_file(path, config)
 
 
-def read_file(path: Path, max_steps: int | None = None) -> tuple[np.ndarray, np.ndarray, list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]]:
+def read_file(
+    path: Path, max_steps: int | None = None
+) -> tuple[np.ndarray, np.ndarray, list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]]:
     """Parse the file.
 
     Returns:
@@ -97,9 +112,13 @@ def read_file(path: Path, max_steps: int | None = None) -> tuple[np.ndarray, np.
             tag = fields[0]
             expected = {"ODOMETRY": 12, "LANDMARK": 8}.get(tag)
             if expected is None:
-                raise InputError(f"{path}:{number}: unknown tag '{tag}' (expected ODOMETRY or LANDMARK)")
+                raise InputError(
+                    f"{path}:{number}: unknown tag '{tag}' (expected ODOMETRY or LANDMARK)"
+                )
             if len(fields) != expected:
-                raise InputError(f"{path}:{number}: {tag} needs {expected - 1} fields after the tag, got {len(fields) - 1}")
+                raise InputError(
+                    f"{path}:{number}: {tag} needs {expected - 1} fields after the tag, got {len(fields) - 1}"
+                )
             try:
                 first, second = int(fields[1]), int(fields[2])
                 values = [float(v) for v in fields[3:]]
@@ -111,21 +130,29 @@ def read_file(path: Path, max_steps: int | None = None) -> tuple[np.ndarray, np.
                 if max_steps is not None and len(increments) >= max_steps:
                     break
                 if pose_key is not None and first != pose_key:
-                    raise InputError(f"{path}:{number}: odometry starts from pose {first} but the last pose is {pose_key}")
+                    raise InputError(
+                        f"{path}:{number}: odometry starts from pose {first} but the last pose is {pose_key}"
+                    )
                 c = values[3:]
                 cov = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]])
                 if np.any(np.linalg.eigvalsh(cov) <= 0):
-                    raise InputError(f"{path}:{number}: odometry covariance is not positive definite")
+                    raise InputError(
+                        f"{path}:{number}: odometry covariance is not positive definite"
+                    )
                 increments.append(values[:3])
                 covariances.append(cov)
                 pose_key = second
             else:
                 current = pose_key if pose_key is not None else first
                 if first != current:
-                    raise InputError(f"{path}:{number}: landmark seen from pose {first} but the last pose is {current}")
+                    raise InputError(
+                        f"{path}:{number}: landmark seen from pose {first} but the last pose is {current}"
+                    )
                 cov = np.array([[values[2], values[3]], [values[3], values[4]]])
                 if np.any(np.linalg.eigvalsh(cov) <= 0):
-                    raise InputError(f"{path}:{number}: landmark covariance is not positive definite")
+                    raise InputError(
+                        f"{path}:{number}: landmark covariance is not positive definite"
+                    )
                 sightings.setdefault(len(increments), []).append((second, values))
     if not increments:
         raise InputError(f"{path}: no ODOMETRY lines")
@@ -172,10 +199,20 @@ def load_file(path: Path, config: VictoriaParkOptions) -> Sequence:
         ground_truth=GroundTruth(history=StateHistory(), scan_ids=scan_ids),
         noise=NoiseSpec(
             gyro_noise_density=heading_sigma / np.sqrt(step),
-            landmark_sigma_m=float(np.sqrt(np.median(np.concatenate([c[:, 0, 0] for _, _, _, c in raw_scans])))) if raw_scans else None,
+            landmark_sigma_m=float(
+                np.sqrt(np.median(np.concatenate([c[:, 0, 0] for _, _, _, c in raw_scans])))
+            )
+            if raw_scans
+            else None,
             rate_hz={"odometry": 1.0 / step, "gyro": 1.0 / step},
         ),
-        initial_state=InitialState(t=0.0, position=np.zeros(2), rotation=np.array(0.0), velocity=np.zeros(2), velocity_sigma_m_s=0.5),
+        initial_state=InitialState(
+            t=0.0,
+            position=np.zeros(2),
+            rotation=np.array(0.0),
+            velocity=np.zeros(2),
+            velocity_sigma_m_s=0.5,
+        ),
         metadata={
             "source": str(path),
             "step_s": step,

@@ -104,7 +104,9 @@ def _as_blocks(cov: np.ndarray, count: int, d: int, name: str) -> np.ndarray:
     if cov.shape == (count * d, count * d):
         idx = np.arange(count)[:, None] * d + np.arange(d)[None, :]
         return cov[idx[:, :, None], idx[:, None, :]]
-    raise InputError(f"association: {name} must have shape ({count}, {d}, {d}) or ({count * d}, {count * d}), got {cov.shape}")
+    raise InputError(
+        f"association: {name} must have shape ({count}, {d}, {d}) or ({count * d}, {count * d}), got {cov.shape}"
+    )
 
 
 def _full_from(cov: np.ndarray, count: int, d: int) -> np.ndarray:
@@ -128,16 +130,27 @@ def _check_inputs(
     measured = np.asarray(measured, dtype=float)
     predicted = np.asarray(predicted, dtype=float)
     if measured.ndim != 2 or predicted.ndim != 2:
-        raise InputError(f"association: measured (k, d) and predicted (m, d) must be 2-D, got {measured.shape} and {predicted.shape}")
+        raise InputError(
+            f"association: measured (k, d) and predicted (m, d) must be 2-D, got {measured.shape} and {predicted.shape}"
+        )
     k, d = measured.shape
     m = predicted.shape[0]
     if m and predicted.shape[1] != d:
-        raise InputError(f"association: measured has dimension {d} but predicted has {predicted.shape[1]}")
-    for name, array in (("measured", measured), ("predicted", predicted), ("measured_cov", measured_cov), ("predicted_cov", predicted_cov)):
+        raise InputError(
+            f"association: measured has dimension {d} but predicted has {predicted.shape[1]}"
+        )
+    for name, array in (
+        ("measured", measured),
+        ("predicted", predicted),
+        ("measured_cov", measured_cov),
+        ("predicted_cov", predicted_cov),
+    ):
         if not np.all(np.isfinite(np.asarray(array, dtype=float))):
             raise InputError(f"association: {name} contains NaN or inf")
     if cross_cov is not None and np.asarray(cross_cov).shape != (k * d, m * d):
-        raise InputError(f"association: cross_cov must have shape ({k * d}, {m * d}), got {np.asarray(cross_cov).shape}")
+        raise InputError(
+            f"association: cross_cov must have shape ({k * d}, {m * d}), got {np.asarray(cross_cov).shape}"
+        )
     return measured, predicted, k, m, d
 
 
@@ -161,7 +174,9 @@ def individual_compatibility(
     Returns:
         (k, m) array of ``D^2`` (d degrees of freedom); ``inf`` where ``S`` is singular.
     """
-    measured, predicted, k, m, d = _check_inputs(measured, measured_cov, predicted, predicted_cov, cross_cov)
+    measured, predicted, k, m, d = _check_inputs(
+        measured, measured_cov, predicted, predicted_cov, cross_cov
+    )
     if k == 0 or m == 0:
         return np.zeros((k, m))
     r_blocks = _as_blocks(measured_cov, k, d, "measured_cov")
@@ -223,7 +238,9 @@ class _JointSearch:
     def _rows(self, j: int, i: int) -> tuple[np.ndarray, np.ndarray]:
         return j * self.d + self.offsets, i * self.d + self.offsets
 
-    def _cross(self, zrows: np.ndarray, hrows: np.ndarray, zr: np.ndarray, hr: np.ndarray) -> np.ndarray:
+    def _cross(
+        self, zrows: np.ndarray, hrows: np.ndarray, zr: np.ndarray, hr: np.ndarray
+    ) -> np.ndarray:
         """cov(nu_H, nu_new) for the stacked hypothesis rows: R + P - C_zh - C_hz."""
         block = self.r[np.ix_(zrows, zr)] + self.p[np.ix_(hrows, hr)]
         if self.c is not None:
@@ -333,7 +350,9 @@ def associate_jcbb(
     Returns:
         ``AssociationResult``.
     """
-    measured, predicted, k, m, d = _check_inputs(measured, measured_cov, predicted, predicted_cov, cross_cov)
+    measured, predicted, k, m, d = _check_inputs(
+        measured, measured_cov, predicted, predicted_cov, cross_cov
+    )
     if max_nodes < 1:
         raise InputError(f"association: max_nodes must be >= 1, got {max_nodes}")
     if not 0.0 < gate_probability < 1.0:
@@ -350,19 +369,27 @@ def associate_jcbb(
     )
     if k == 0 or m == 0:
         return empty
-    distances = individual_compatibility(measured, measured_cov, predicted, predicted_cov, cross_cov)
+    distances = individual_compatibility(
+        measured, measured_cov, predicted, predicted_cov, cross_cov
+    )
     gated = distances < chi2_gate(d, gate_probability)
     if candidate_mask is not None:
         mask = np.asarray(candidate_mask, dtype=bool)
         if mask.shape != (k, m):
-            raise InputError(f"association: candidate_mask must have shape ({k}, {m}), got {mask.shape}")
+            raise InputError(
+                f"association: candidate_mask must have shape ({k}, {m}), got {mask.shape}"
+            )
         gated &= mask
     counts = gated.sum(axis=1).astype(int)
-    candidates = [list(np.flatnonzero(gated[j])[np.argsort(distances[j, gated[j]])]) for j in range(k)]
+    candidates = [
+        list(np.flatnonzero(gated[j])[np.argsort(distances[j, gated[j]])]) for j in range(k)
+    ]
     # Fewest candidates first: unambiguous pairs fix the hypothesis early and prune more.
     order = sorted((j for j in range(k) if counts[j] > 0), key=lambda j: (counts[j], j))
     if not order:
-        return AssociationResult(empty.assignments, empty.individual_nis, counts, 0.0, 0, 0, False, d)
+        return AssociationResult(
+            empty.assignments, empty.individual_nis, counts, 0.0, 0, 0, False, d
+        )
     search = _JointSearch(
         measured,
         predicted,
@@ -405,12 +432,18 @@ def associate_nearest_neighbour(
     The baseline JCBB improves on; same arguments and result as ``associate_jcbb``
     (``joint_nis`` here is the sum of the individual distances, ``nodes`` 0).
     """
-    measured, predicted, k, m, d = _check_inputs(measured, measured_cov, predicted, predicted_cov, cross_cov)
+    measured, predicted, k, m, d = _check_inputs(
+        measured, measured_cov, predicted, predicted_cov, cross_cov
+    )
     assignments = np.full(k, -1, dtype=int)
     individual = np.full(k, np.nan)
     if k == 0 or m == 0:
-        return AssociationResult(assignments, individual, np.zeros(k, dtype=int), 0.0, 0, 0, False, d)
-    distances = individual_compatibility(measured, measured_cov, predicted, predicted_cov, cross_cov)
+        return AssociationResult(
+            assignments, individual, np.zeros(k, dtype=int), 0.0, 0, 0, False, d
+        )
+    distances = individual_compatibility(
+        measured, measured_cov, predicted, predicted_cov, cross_cov
+    )
     gated = distances < chi2_gate(d, gate_probability)
     counts = gated.sum(axis=1).astype(int)
     used: set[int] = set()
@@ -424,4 +457,6 @@ def associate_nearest_neighbour(
         individual[j] = distances[j, i]
         used.add(i)
     pairs = int((assignments >= 0).sum())
-    return AssociationResult(assignments, individual, counts, float(np.nansum(individual)), pairs, 0, False, d)
+    return AssociationResult(
+        assignments, individual, counts, float(np.nansum(individual)), pairs, 0, False, d
+    )

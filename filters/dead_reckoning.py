@@ -21,7 +21,14 @@ from pydantic import BaseModel, ConfigDict, Field
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
 from datasets.measurements import GyroSample, ImuSample, Measurement, Odometry, Sensor
-from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, skew, so3_exp, wrap_angle
+from datasets.rotations import (
+    matrix_from_quat_wxyz,
+    quat_wxyz_from_matrix,
+    rot2,
+    skew,
+    so3_exp,
+    wrap_angle,
+)
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame
 
@@ -32,9 +39,13 @@ class DeadReckoningConfig(BaseModel):
     """Options of the dead-reckoning integrator."""
 
     model_config = ConfigDict(extra="forbid")
-    max_gap_s: float = Field(1.0, gt=0, description="a gap between motion samples longer than this is an error")
+    max_gap_s: float = Field(
+        1.0, gt=0, description="a gap between motion samples longer than this is an error"
+    )
     gyro_velocity_sigma_m_s2: float = Field(
-        0.05, ge=0, description="2-D gyro-only: random-walk density of the assumed-constant body velocity [m/s^2/sqrt(Hz)]"
+        0.05,
+        ge=0,
+        description="2-D gyro-only: random-walk density of the assumed-constant body velocity [m/s^2/sqrt(Hz)]",
     )
 
 
@@ -51,17 +62,28 @@ class DeadReckoning:
 
     def __init__(self, config: DeadReckoningConfig, sequence: Sequence) -> None:
         if sequence.initial_state is None:
-            raise InputError(f"{sequence.name}: dead reckoning needs an initial state, the dataset gives none")
+            raise InputError(
+                f"{sequence.name}: dead reckoning needs an initial state, the dataset gives none"
+            )
         self.config = config
         self.dimension = sequence.dimension
-        self.input = next(sensor for option in self.sensor_options for sensor in option if sensor in sequence.sensors)
+        self.input = next(
+            sensor
+            for option in self.sensor_options
+            for sensor in option
+            if sensor in sequence.sensors
+        )
         self.noise = sequence.noise
         start = sequence.initial_state
         self.recorder = EstimateRecorder(self.dimension)
         self.t = float(start.t)
         self.last_imu: tuple[np.ndarray, np.ndarray] | None = None
         self.position = np.array(start.position, dtype=float)
-        velocity = np.zeros(self.dimension) if start.velocity is None else np.array(start.velocity, dtype=float)
+        velocity = (
+            np.zeros(self.dimension)
+            if start.velocity is None
+            else np.array(start.velocity, dtype=float)
+        )
         if self.dimension == 3:
             self.rotation = matrix_from_quat_wxyz(start.rotation)
             self.velocity = velocity
@@ -70,12 +92,16 @@ class DeadReckoning:
             self.covariance[3:6, 3:6] = np.eye(3) * start.velocity_sigma_m_s**2
             self.covariance[6:9, 6:9] = np.eye(3) * start.position_sigma_m**2
             self.covariance[9:12, 9:12] = np.eye(3) * (self.noise.gyro_bias_sigma_rad_s or 0.0) ** 2
-            self.covariance[12:15, 12:15] = np.eye(3) * (self.noise.accel_bias_sigma_m_s2 or 0.0) ** 2
+            self.covariance[12:15, 12:15] = (
+                np.eye(3) * (self.noise.accel_bias_sigma_m_s2 or 0.0) ** 2
+            )
         else:
             self.heading = float(start.rotation)
             # body-frame velocity held constant in the gyro-only mode
             self.body_velocity = rot2(self.heading).T @ velocity
-            self.covariance = np.diag([start.position_sigma_m**2] * 2 + [start.rotation_sigma_rad**2])
+            self.covariance = np.diag(
+                [start.position_sigma_m**2] * 2 + [start.rotation_sigma_rad**2]
+            )
             self.body_velocity_variance = start.velocity_sigma_m_s**2
         self._record()
 
@@ -86,10 +112,18 @@ class DeadReckoning:
             to_body[3:6, 3:6] = self.rotation.T
             indices = np.r_[0:3, 6:9]
             pose_cov = to_body @ self.covariance[np.ix_(indices, indices)] @ to_body.T
-            self.recorder.pose(self.t, self.position, quat_wxyz_from_matrix(self.rotation), pose_cov)
-            self.recorder.block(BlockName.VELOCITY, self.t, self.velocity, self.covariance[3:6, 3:6], Frame.WORLD)
-            self.recorder.block(BlockName.GYRO_BIAS, self.t, np.zeros(3), self.covariance[9:12, 9:12])
-            self.recorder.block(BlockName.ACCEL_BIAS, self.t, np.zeros(3), self.covariance[12:15, 12:15])
+            self.recorder.pose(
+                self.t, self.position, quat_wxyz_from_matrix(self.rotation), pose_cov
+            )
+            self.recorder.block(
+                BlockName.VELOCITY, self.t, self.velocity, self.covariance[3:6, 3:6], Frame.WORLD
+            )
+            self.recorder.block(
+                BlockName.GYRO_BIAS, self.t, np.zeros(3), self.covariance[9:12, 9:12]
+            )
+            self.recorder.block(
+                BlockName.ACCEL_BIAS, self.t, np.zeros(3), self.covariance[12:15, 12:15]
+            )
         else:
             self.recorder.pose(self.t, self.position, self.heading, self.covariance)
 
@@ -100,7 +134,9 @@ class DeadReckoning:
         if dt < 0:
             raise InputError(f"time goes backwards at t={t:.6f} s (previous {self.t:.6f} s)")
         if dt > self.config.max_gap_s:
-            raise InputError(f"gap of {dt:.3f} s in motion input at t={t:.6f} s (max_gap_s={self.config.max_gap_s})")
+            raise InputError(
+                f"gap of {dt:.3f} s in motion input at t={t:.6f} s (max_gap_s={self.config.max_gap_s})"
+            )
         return dt
 
     # ------------------------------------------------------------------ inputs
@@ -167,7 +203,9 @@ class DeadReckoning:
             jacobian = np.array([[dt, 0.0], [0.0, 0.0], [0.0, dt]])
             increment_cov = jacobian @ np.asarray(odometry.covariance, float) @ jacobian.T
         else:
-            raise InputError(f"odometry at t={odometry.t:.6f} s has neither relative_pose nor velocity")
+            raise InputError(
+                f"odometry at t={odometry.t:.6f} s has neither relative_pose nor velocity"
+            )
         if not np.all(np.isfinite(increment)):
             raise InputError(f"non-finite odometry at t={odometry.t:.6f} s")
         self._compose_planar(increment, increment_cov)

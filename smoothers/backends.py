@@ -52,20 +52,31 @@ def fetch_values(source, keys: list[int], dimension: int) -> gtsam.Values:
     for key in keys:
         kind = chr(gtsam.Symbol(key).chr())
         if kind == "x":
-            values.insert(key, source.calculateEstimatePose3(key) if dimension == 3 else source.calculateEstimatePose2(key))
+            values.insert(
+                key,
+                source.calculateEstimatePose3(key)
+                if dimension == 3
+                else source.calculateEstimatePose2(key),
+            )
         elif kind == "v":
             values.insert(key, np.asarray(source.calculateEstimateVector(key), dtype=float))
         elif kind == "b":
             values.insert(key, source.calculateEstimateConstantBias(key))
         elif kind == "l":
-            point = source.calculateEstimatePoint3(key) if dimension == 3 else source.calculateEstimatePoint2(key)
+            point = (
+                source.calculateEstimatePoint3(key)
+                if dimension == 3
+                else source.calculateEstimatePoint2(key)
+            )
             values.insert(key, np.asarray(point, dtype=float))
         else:
             raise ValueError(f"unknown variable kind {kind!r}")
     return values
 
 
-def isam2_params(relinearize_threshold: float, relinearize_skip: int, dimension: int = 3) -> gtsam.ISAM2Params:
+def isam2_params(
+    relinearize_threshold: float, relinearize_skip: int, dimension: int = 3
+) -> gtsam.ISAM2Params:
     """iSAM2 parameters: QR factorisation (Cholesky fails on the KITTI IMU's tiny bias walk,
     an information ratio of about 1e12), a threshold per variable type."""
     params = gtsam.ISAM2Params()
@@ -84,13 +95,25 @@ def isam2_params(relinearize_threshold: float, relinearize_skip: int, dimension:
 class Isam2Backend:
     """iSAM2 over the whole history."""
 
-    def __init__(self, relinearize_threshold: float, relinearize_skip: int, extra_iterations: int, dimension: int = 3) -> None:
+    def __init__(
+        self,
+        relinearize_threshold: float,
+        relinearize_skip: int,
+        extra_iterations: int,
+        dimension: int = 3,
+    ) -> None:
         self.isam = gtsam.ISAM2(isam2_params(relinearize_threshold, relinearize_skip, dimension))
         self.dimension = dimension
         self.extra_iterations = extra_iterations
         self.gtsam_seconds = 0.0
 
-    def update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, key_times: dict[int, float], t: float) -> float:
+    def update(
+        self,
+        graph: gtsam.NonlinearFactorGraph,
+        values: gtsam.Values,
+        key_times: dict[int, float],
+        t: float,
+    ) -> float:
         """Add factors and values; returns the seconds spent inside GTSAM."""
         start = time.perf_counter()
         try:
@@ -113,7 +136,11 @@ class Isam2Backend:
         try:
             return self.isam.marginalCovariance(key)
         except RuntimeError as error:
-            raise _explain(error, float("nan"), f"iSAM2 marginal covariance of {gtsam.DefaultKeyFormatter(key)}") from None
+            raise _explain(
+                error,
+                float("nan"),
+                f"iSAM2 marginal covariance of {gtsam.DefaultKeyFormatter(key)}",
+            ) from None
 
     def joint_marginal_covariance(self, keys: list[int]) -> np.ndarray:
         """Full joint marginal covariance of ``keys``, blocks in the given order."""
@@ -135,14 +162,24 @@ class Isam2Backend:
 class FixedLagBackend:
     """``gtsam.IncrementalFixedLagSmoother`` with a lag in seconds."""
 
-    def __init__(self, lag_s: float, relinearize_threshold: float, relinearize_skip: int, dimension: int = 3) -> None:
+    def __init__(
+        self, lag_s: float, relinearize_threshold: float, relinearize_skip: int, dimension: int = 3
+    ) -> None:
         self.lag_s = lag_s
         self.dimension = dimension
-        self.smoother = gtsam.IncrementalFixedLagSmoother(lag_s, isam2_params(relinearize_threshold, relinearize_skip, dimension))
+        self.smoother = gtsam.IncrementalFixedLagSmoother(
+            lag_s, isam2_params(relinearize_threshold, relinearize_skip, dimension)
+        )
         self.key_times: dict[int, float] = {}
         self.gtsam_seconds = 0.0
 
-    def update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, key_times: dict[int, float], t: float) -> float:
+    def update(
+        self,
+        graph: gtsam.NonlinearFactorGraph,
+        values: gtsam.Values,
+        key_times: dict[int, float],
+        t: float,
+    ) -> float:
         stamps = gtsam.FixedLagSmootherKeyTimestampMap()
         for key, stamp in key_times.items():
             stamps.insert((key, stamp))
@@ -169,7 +206,11 @@ class FixedLagBackend:
         try:
             return self.smoother.marginalCovariance(key)
         except RuntimeError as error:
-            raise _explain(error, float("nan"), f"fixed-lag marginal covariance of {gtsam.DefaultKeyFormatter(key)}") from None
+            raise _explain(
+                error,
+                float("nan"),
+                f"fixed-lag marginal covariance of {gtsam.DefaultKeyFormatter(key)}",
+            ) from None
 
     def leaving(self, t_new: float) -> list[int]:
         """Keys an update whose latest time is ``t_new`` will marginalise (time < t_new - lag)."""

@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
-
 from gtsam.symbol_shorthand import B, V, X
 
 from datasets.errors import InputError
@@ -27,7 +26,12 @@ from datasets.measurements import ImuSample
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from datasets.sequence import InitialState, NoiseSpec
 from datasets.state import BlockName, Frame
-from smoothers.covariances import MarginalSource, bias_covariances, pose_covariance, vector_covariance
+from smoothers.covariances import (
+    MarginalSource,
+    bias_covariances,
+    pose_covariance,
+    vector_covariance,
+)
 from smoothers.initialization import InitialPriors
 
 
@@ -51,7 +55,7 @@ class ImuNoise:
     integration_sigma: float = 1e-4
 
     @staticmethod
-    def from_spec(spec: NoiseSpec, where: str) -> "ImuNoise":
+    def from_spec(spec: NoiseSpec, where: str) -> ImuNoise:
         """Take the densities from a ``NoiseSpec``; ``InputError`` naming a missing one."""
         values = {
             "gyro_noise_density": spec.gyro_noise_density,
@@ -59,9 +63,15 @@ class ImuNoise:
             "gyro_bias_walk": spec.gyro_bias_walk,
             "accel_bias_walk": spec.accel_bias_walk,
         }
-        missing = [name for name, value in values.items() if value is None or not np.isfinite(value) or value <= 0]
+        missing = [
+            name
+            for name, value in values.items()
+            if value is None or not np.isfinite(value) or value <= 0
+        ]
         if missing:
-            raise InputError(f"{where}: the smoother needs positive IMU noise densities; missing or invalid: {', '.join(missing)}")
+            raise InputError(
+                f"{where}: the smoother needs positive IMU noise densities; missing or invalid: {', '.join(missing)}"
+            )
         return ImuNoise(**{name: float(value) for name, value in values.items()})  # type: ignore[arg-type]
 
 
@@ -157,7 +167,11 @@ class KeyframeImuIntegrator:
             self._hold(t, gyro, accel)
             self._integrate_until(t)
         else:
-            self.lookahead = (float(t), np.asarray(gyro, dtype=float), np.asarray(accel, dtype=float))
+            self.lookahead = (
+                float(t),
+                np.asarray(gyro, dtype=float),
+                np.asarray(accel, dtype=float),
+            )
             self._integrate_until(t)
             self._hold(t, gyro, accel)
         self.lookahead = None
@@ -167,7 +181,9 @@ class KeyframeImuIntegrator:
     def close(self, t: float) -> gtsam.PreintegratedCombinedMeasurements:
         """Integrate up to keyframe time ``t`` and return the finished preintegration."""
         if self.held_t is None:
-            raise InputError(f"a keyframe at t={t:.6f} s needs IMU samples before it; none has arrived")
+            raise InputError(
+                f"a keyframe at t={t:.6f} s needs IMU samples before it; none has arrived"
+            )
         self._integrate_until(t)
         assert self.pim is not None
         if self.integrated_s <= 0.0:
@@ -191,7 +207,9 @@ class ImuMotion:
 
     dimension = 3
 
-    def __init__(self, noise: ImuNoise, gravity_m_s2: float, max_gap_s: float, interpolate: bool = True) -> None:
+    def __init__(
+        self, noise: ImuNoise, gravity_m_s2: float, max_gap_s: float, interpolate: bool = True
+    ) -> None:
         self.params = combined_params(noise, gravity_m_s2)
         self.integrator = KeyframeImuIntegrator(self.params, max_gap_s, interpolate=interpolate)
         self.preintegrations: dict[int, gtsam.PreintegratedCombinedMeasurements] = {}
@@ -209,24 +227,51 @@ class ImuMotion:
 
     def look_ahead(self, sample: ImuSample) -> None:
         """The next sample, known before a keyframe between it and the held one is closed."""
-        self.integrator.lookahead = (float(sample.t), np.asarray(sample.gyro, dtype=float), np.asarray(sample.accel, dtype=float))
+        self.integrator.lookahead = (
+            float(sample.t),
+            np.asarray(sample.gyro, dtype=float),
+            np.asarray(sample.accel, dtype=float),
+        )
 
     def add(self, sample: ImuSample) -> None:
         if not (np.all(np.isfinite(sample.gyro)) and np.all(np.isfinite(sample.accel))):
             raise InputError(f"non-finite IMU sample at t={sample.t:.6f} s")
         self.integrator.add(sample.t, sample.gyro, sample.accel)
 
-    def initial(self, start: InitialState, priors: InitialPriors) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    def initial(
+        self, start: InitialState, priors: InitialPriors
+    ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
         """Variables and priors of keyframe 0 at ``start.t``."""
-        pose = gtsam.Pose3(gtsam.Rot3(matrix_from_quat_wxyz(start.rotation)), np.asarray(start.position, dtype=float))
-        velocity = np.zeros(3) if start.velocity is None else np.asarray(start.velocity, dtype=float)
+        pose = gtsam.Pose3(
+            gtsam.Rot3(matrix_from_quat_wxyz(start.rotation)),
+            np.asarray(start.position, dtype=float),
+        )
+        velocity = (
+            np.zeros(3) if start.velocity is None else np.asarray(start.velocity, dtype=float)
+        )
         bias = gtsam.imuBias.ConstantBias()
         graph = gtsam.NonlinearFactorGraph()
-        graph.add(gtsam.PriorFactorPose3(X(0), pose, gtsam.noiseModel.Diagonal.Sigmas(navstate_prior_sigmas(priors.rotation_sigma_rad, priors.position_sigma_m))))
-        graph.add(gtsam.PriorFactorVector(V(0), velocity, gtsam.noiseModel.Isotropic.Sigma(3, priors.velocity_sigma_m_s)))
+        graph.add(
+            gtsam.PriorFactorPose3(
+                X(0),
+                pose,
+                gtsam.noiseModel.Diagonal.Sigmas(
+                    navstate_prior_sigmas(priors.rotation_sigma_rad, priors.position_sigma_m)
+                ),
+            )
+        )
+        graph.add(
+            gtsam.PriorFactorVector(
+                V(0), velocity, gtsam.noiseModel.Isotropic.Sigma(3, priors.velocity_sigma_m_s)
+            )
+        )
         graph.add(
             gtsam.PriorFactorConstantBias(
-                B(0), bias, gtsam.noiseModel.Diagonal.Sigmas(bias_prior_sigmas(priors.accel_bias_sigma_m_s2, priors.gyro_bias_sigma_rad_s))
+                B(0),
+                bias,
+                gtsam.noiseModel.Diagonal.Sigmas(
+                    bias_prior_sigmas(priors.accel_bias_sigma_m_s2, priors.gyro_bias_sigma_rad_s)
+                ),
             )
         )
         values = gtsam.Values()
@@ -236,7 +281,9 @@ class ImuMotion:
         self.integrator.start(start.t, bias)
         return graph, values
 
-    def close(self, k: int, t: float, estimate: gtsam.Values) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    def close(
+        self, k: int, t: float, estimate: gtsam.Values
+    ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
         """``CombinedImuFactor`` from ``k-1`` to ``k`` and the predicted state of ``k``."""
         pim = self.integrator.close(t)
         self.preintegrations[k] = pim
@@ -254,7 +301,9 @@ class ImuMotion:
     def dead_reckoning_step(self, k: int, values: gtsam.Values) -> gtsam.Values:
         """Open-loop state of keyframe ``k`` from ``k-1`` in ``values`` (bias held at k-1's)."""
         bias = values.atConstantBias(B(k - 1))
-        predicted = self.preintegrations[k].predict(gtsam.NavState(values.atPose3(X(k - 1)), values.atVector(V(k - 1))), bias)
+        predicted = self.preintegrations[k].predict(
+            gtsam.NavState(values.atPose3(X(k - 1)), values.atVector(V(k - 1))), bias
+        )
         step = gtsam.Values()
         step.insert(X(k), predicted.pose())
         step.insert(V(k), predicted.velocity())
@@ -273,7 +322,13 @@ class ImuMotion:
         return values.atPose3(X(k))
 
     @staticmethod
-    def record(recorder: EstimateRecorder, t: float, values: gtsam.Values, k: int, marginals: MarginalSource | None) -> None:
+    def record(
+        recorder: EstimateRecorder,
+        t: float,
+        values: gtsam.Values,
+        k: int,
+        marginals: MarginalSource | None,
+    ) -> None:
         """Pose, world velocity and both biases of keyframe ``k`` in interface conventions."""
         pose = values.atPose3(X(k))
         bias = values.atConstantBias(B(k))
@@ -283,7 +338,9 @@ class ImuMotion:
             velocity_cov = vector_covariance(marginals.marginalCovariance(V(k)))
             split = bias_covariances(marginals.marginalCovariance(B(k)))
             gyro_cov, accel_cov = split.gyro, split.accel
-        recorder.pose(t, pose.translation(), quat_wxyz_from_matrix(pose.rotation().matrix()), pose_cov)
+        recorder.pose(
+            t, pose.translation(), quat_wxyz_from_matrix(pose.rotation().matrix()), pose_cov
+        )
         recorder.block(BlockName.VELOCITY, t, values.atVector(V(k)), velocity_cov, Frame.WORLD)
         recorder.block(BlockName.GYRO_BIAS, t, bias.gyroscope(), gyro_cov, Frame.BODY)
         recorder.block(BlockName.ACCEL_BIAS, t, bias.accelerometer(), accel_cov, Frame.BODY)

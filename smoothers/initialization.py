@@ -46,10 +46,14 @@ class InitialPriors:
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
             if not value > 0.0:
-                raise InputError(f"initial prior {name} must be positive (a zero sigma makes the system singular), got {value}")
+                raise InputError(
+                    f"initial prior {name} must be positive (a zero sigma makes the system singular), got {value}"
+                )
 
 
-def levenberg_marquardt(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, max_iterations: int) -> tuple[gtsam.Values, int, float, float]:
+def levenberg_marquardt(
+    graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, max_iterations: int
+) -> tuple[gtsam.Values, int, float, float]:
     """Batch LM from ``initial``: (result, iterations, initial error, final error)."""
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(max_iterations)

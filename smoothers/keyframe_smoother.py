@@ -33,7 +33,14 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
-from datasets.measurements import GpsFix, ImuSample, LandmarkScan, Measurement, Odometry, GyroSample, Sensor
+from datasets.measurements import (
+    GpsFix,
+    ImuSample,
+    LandmarkScan,
+    Measurement,
+    Odometry,
+    Sensor,
+)
 from datasets.sequence import Sequence
 from datasets.state import Frame, LandmarkMap, StateHistory
 from smoothers.covariances import vector_covariance
@@ -55,32 +62,77 @@ class SmootherConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     anchors: int | None = Field(
-        None, ge=0, description="the first N of sequence.known_landmarks become known landmarks (tight priors), as for the filters; "
-        "None: 3 when the dataset offers known landmarks (the aghili filter's default), else 0"
+        None,
+        ge=0,
+        description="the first N of sequence.known_landmarks become known landmarks (tight priors), as for the filters; "
+        "None: 3 when the dataset offers known landmarks (the aghili filter's default), else 0",
     )
-    anchor_sigma_m: float = Field(1e-3, gt=0, description="std of an anchor landmark's prior [m] (tight: 'known')")
-    keyframe_imu_stride: int | None = Field(None, ge=1, description="also open a keyframe every k motion samples (None: only at scans/GPS fixes)")
-    max_imu_gap_s: float = Field(0.5, gt=0, description="a gap between motion samples longer than this is an InputError [s]")
-    gravity_m_s2: float | None = Field(None, gt=0, description="gravity magnitude [m/s^2]; None: sequence.metadata['gravity_m_s2'] or 9.81")
-    position_sigma_m: float | None = Field(None, gt=0, description="initial position prior std [m]; None: sequence.initial_state")
-    rotation_sigma_rad: float | None = Field(None, gt=0, description="initial rotation prior std [rad]; None: sequence.initial_state")
-    velocity_sigma_m_s: float | None = Field(None, gt=0, description="initial velocity prior std [m/s]; None: sequence.initial_state")
-    gyro_bias_sigma_rad_s: float | None = Field(None, gt=0, description="initial gyro bias std [rad/s]; None: sequence.noise, else 0.01")
-    accel_bias_sigma_m_s2: float | None = Field(None, gt=0, description="initial accel bias std [m/s^2]; None: sequence.noise, else 0.1")
+    anchor_sigma_m: float = Field(
+        1e-3, gt=0, description="std of an anchor landmark's prior [m] (tight: 'known')"
+    )
+    keyframe_imu_stride: int | None = Field(
+        None,
+        ge=1,
+        description="also open a keyframe every k motion samples (None: only at scans/GPS fixes)",
+    )
+    max_imu_gap_s: float = Field(
+        0.5, gt=0, description="a gap between motion samples longer than this is an InputError [s]"
+    )
+    gravity_m_s2: float | None = Field(
+        None,
+        gt=0,
+        description="gravity magnitude [m/s^2]; None: sequence.metadata['gravity_m_s2'] or 9.81",
+    )
+    position_sigma_m: float | None = Field(
+        None, gt=0, description="initial position prior std [m]; None: sequence.initial_state"
+    )
+    rotation_sigma_rad: float | None = Field(
+        None, gt=0, description="initial rotation prior std [rad]; None: sequence.initial_state"
+    )
+    velocity_sigma_m_s: float | None = Field(
+        None, gt=0, description="initial velocity prior std [m/s]; None: sequence.initial_state"
+    )
+    gyro_bias_sigma_rad_s: float | None = Field(
+        None, gt=0, description="initial gyro bias std [rad/s]; None: sequence.noise, else 0.01"
+    )
+    accel_bias_sigma_m_s2: float | None = Field(
+        None, gt=0, description="initial accel bias std [m/s^2]; None: sequence.noise, else 0.1"
+    )
     landmark_factor: Literal["bearing-range", "cartesian"] = Field(
-        "bearing-range", description="3-D landmark factor: native BearingRangeFactor3D with mapped noise, or an exact Python CustomFactor"
+        "bearing-range",
+        description="3-D landmark factor: native BearingRangeFactor3D with mapped noise, or an exact Python CustomFactor",
     )
-    association: Literal["auto", "ids", "jcbb"] = Field("auto", description="auto: ids when scans carry them, else JCBB")
-    gate_probability: float = Field(0.999, gt=0, lt=1, description="chi-square gate probability of JCBB")
-    use_gps: bool = Field(True, description="add GPS position factors when the sequence has GPS fixes")
-    use_odometry: bool = Field(True, description="3-D: add relative-pose factors from 6-D odometry (lidar) when the sequence has it")
+    association: Literal["auto", "ids", "jcbb"] = Field(
+        "auto", description="auto: ids when scans carry them, else JCBB"
+    )
+    gate_probability: float = Field(
+        0.999, gt=0, lt=1, description="chi-square gate probability of JCBB"
+    )
+    use_gps: bool = Field(
+        True, description="add GPS position factors when the sequence has GPS fixes"
+    )
+    use_odometry: bool = Field(
+        True,
+        description="3-D: add relative-pose factors from 6-D odometry (lidar) when the sequence has it",
+    )
     relinearize_threshold: float = Field(0.05, gt=0, description="iSAM2 relinearisation threshold")
     relinearize_skip: int = Field(1, ge=1, description="iSAM2 relinearise every k updates")
     extra_iterations: int = Field(0, ge=0, description="extra iSAM2 update() calls per keyframe")
-    planar_velocity_walk_m_s2: float = Field(0.1, gt=0, description="2-D gyro-only model: body-velocity random-walk density [m/s^2/sqrt(Hz)]")
-    planar_gyro_density: float | None = Field(None, gt=0, description="2-D gyro-only: gyro white-noise density; None: sequence.noise")
-    odometry_lateral_sigma_m_s: float = Field(0.02, gt=0, description="2-D velocity odometry: lateral-slip floor [m/s]")
-    imu_interpolation: bool = Field(True, description="integrate the line between consecutive samples (instantaneous samples); false: zero-order hold")
+    planar_velocity_walk_m_s2: float = Field(
+        0.1,
+        gt=0,
+        description="2-D gyro-only model: body-velocity random-walk density [m/s^2/sqrt(Hz)]",
+    )
+    planar_gyro_density: float | None = Field(
+        None, gt=0, description="2-D gyro-only: gyro white-noise density; None: sequence.noise"
+    )
+    odometry_lateral_sigma_m_s: float = Field(
+        0.02, gt=0, description="2-D velocity odometry: lateral-slip floor [m/s]"
+    )
+    imu_interpolation: bool = Field(
+        True,
+        description="integrate the line between consecutive samples (instantaneous samples); false: zero-order hold",
+    )
 
 
 @dataclass
@@ -147,7 +199,11 @@ class KeyframeSmoother:
         self.estimate_values = gtsam.Values()
         self.causal_covariances = True
         self.has_gps = Sensor.GPS in sequence.sensors and config.use_gps
-        self.odometry_3d = RelativePoseAccumulator() if self.dimension == 3 and config.use_odometry and Sensor.ODOMETRY in sequence.sensors else None
+        self.odometry_3d = (
+            RelativePoseAccumulator()
+            if self.dimension == 3 and config.use_odometry and Sensor.ODOMETRY in sequence.sensors
+            else None
+        )
         graph, values = self.motion.initial(self.start, self.priors)
         self.pending_graph = graph
         self.pending_values = values
@@ -175,7 +231,12 @@ class KeyframeSmoother:
         c = self.config
         if sequence.dimension == 3:
             gravity = c.gravity_m_s2 or float(sequence.metadata.get("gravity_m_s2", 9.81))
-            return ImuMotion(ImuNoise.from_spec(sequence.noise, sequence.name), gravity, c.max_imu_gap_s, c.imu_interpolation)
+            return ImuMotion(
+                ImuNoise.from_spec(sequence.noise, sequence.name),
+                gravity,
+                c.max_imu_gap_s,
+                c.imu_interpolation,
+            )
         if Sensor.ODOMETRY in sequence.sensors:
             source = "odometry"
         elif Sensor.GYRO in sequence.sensors:
@@ -184,9 +245,18 @@ class KeyframeSmoother:
             raise InputError(f"{sequence.name}: the planar smoother needs odometry or a rate gyro")
         gyro_density = c.planar_gyro_density or sequence.noise.gyro_noise_density
         if source == "gyro" and not gyro_density:
-            raise InputError(f"{sequence.name}: gyro-only planar smoother needs the gyro noise density (sequence.noise or planar_gyro_density)")
+            raise InputError(
+                f"{sequence.name}: gyro-only planar smoother needs the gyro noise density (sequence.noise or planar_gyro_density)"
+            )
         gyro_walk = sequence.noise.gyro_bias_walk or 1e-4
-        return PlanarMotion(source, c.planar_velocity_walk_m_s2, gyro_density or 0.0, gyro_walk, c.odometry_lateral_sigma_m_s, c.max_imu_gap_s)
+        return PlanarMotion(
+            source,
+            c.planar_velocity_walk_m_s2,
+            gyro_density or 0.0,
+            gyro_walk,
+            c.odometry_lateral_sigma_m_s,
+            c.max_imu_gap_s,
+        )
 
     def _add_anchors(self, sequence: Sequence) -> None:
         count = self.config.anchors
@@ -198,15 +268,21 @@ class KeyframeSmoother:
         known = sequence.known_landmarks
         if known is None or len(known) < count:
             have = 0 if known is None else len(known)
-            raise InputError(f"{sequence.name}: anchors={count} but the dataset offers {have} known landmarks")
+            raise InputError(
+                f"{sequence.name}: anchors={count} but the dataset offers {have} known landmarks"
+            )
         if known.dimension != self.dimension:
-            raise InputError(f"{sequence.name}: known landmarks are {known.dimension}-D, the sequence is {self.dimension}-D")
+            raise InputError(
+                f"{sequence.name}: known landmarks are {known.dimension}-D, the sequence is {self.dimension}-D"
+            )
         for index in range(count):
             map_id = int(known.ids[index])
             position = np.asarray(known.positions[index], dtype=float)
             landmark = self._new_landmark(map_id, position, self.start.t)
             landmark.anchor_position = position
-            self.pending_graph.add(landmark_prior(landmark.key, position, self.config.anchor_sigma_m))
+            self.pending_graph.add(
+                landmark_prior(landmark.key, position, self.config.anchor_sigma_m)
+            )
         self.next_map_id = max(self.next_map_id, int(np.max(known.ids[:count])) + 1)
 
     def _new_landmark(self, map_id: int, position: np.ndarray, t: float) -> _Landmark:
@@ -234,16 +310,24 @@ class KeyframeSmoother:
     def process(self, measurement: Measurement) -> None:
         t = float(measurement.t)
         if not np.isfinite(t):
-            raise InputError(f"non-finite time stamp after t={self.last_t:.6f} s ({type(measurement).__name__})")
+            raise InputError(
+                f"non-finite time stamp after t={self.last_t:.6f} s ({type(measurement).__name__})"
+            )
         if t < self.last_t:
-            raise InputError(f"time goes backwards at t={t:.6f} s (previous {self.last_t:.6f} s, {type(measurement).__name__})")
+            raise InputError(
+                f"time goes backwards at t={t:.6f} s (previous {self.last_t:.6f} s, {type(measurement).__name__})"
+            )
         self.last_t = t
         if self.group is not None and t > self.group.t:
             if self.motion.accepts(measurement):
                 self.motion.look_ahead(measurement)  # type: ignore[arg-type]
             self._commit_group()
         if self.motion.accepts(measurement):
-            if t < self.start.t and isinstance(measurement, Odometry) and measurement.relative_pose is not None:
+            if (
+                t < self.start.t
+                and isinstance(measurement, Odometry)
+                and measurement.relative_pose is not None
+            ):
                 return
             if isinstance(measurement, ImuSample):
                 before = self.motion.integrator.held_t  # type: ignore[union-attr]
@@ -257,13 +341,17 @@ class KeyframeSmoother:
                 self._open_group(t)
             return
         if t < self.start.t:
-            self.recorder.event(t, "measurement_before_start_skipped", kind=type(measurement).__name__)
+            self.recorder.event(
+                t, "measurement_before_start_skipped", kind=type(measurement).__name__
+            )
             return
         if isinstance(measurement, LandmarkScan):
             self._open_group(t).scans.append(measurement)
         elif isinstance(measurement, GpsFix) and self.has_gps:
             self._open_group(t).fixes.append(measurement)
-        elif isinstance(measurement, Odometry) and self.odometry_3d is not None and t > self.start.t:
+        elif (
+            isinstance(measurement, Odometry) and self.odometry_3d is not None and t > self.start.t
+        ):
             # A relative pose ends at a state: it opens a keyframe at its own time.
             self.odometry_3d.add(measurement)
             if measurement.relative_pose is not None:
@@ -290,7 +378,9 @@ class KeyframeSmoother:
                 self.pending_times[key] = t
             self.keyframe_t.append(t)
             if self.odometry_3d is not None:
-                factor = self.odometry_3d.factor(self.motion.pose_key(k - 1), self.motion.pose_key(k))
+                factor = self.odometry_3d.factor(
+                    self.motion.pose_key(k - 1), self.motion.pose_key(k)
+                )
                 if factor is not None:
                     self.pending_graph.add(factor)
                 self.odometry_3d.start()
@@ -316,7 +406,9 @@ class KeyframeSmoother:
         return values
 
     def _needs_jcbb(self, scan: LandmarkScan) -> bool:
-        return self.config.association == "jcbb" or (self.config.association == "auto" and scan.ids is None)
+        return self.config.association == "jcbb" or (
+            self.config.association == "auto" and scan.ids is None
+        )
 
     def _solve_pending(self, t: float) -> None:
         """Send the pending factors to the backend without recording a causal state."""
@@ -333,7 +425,13 @@ class KeyframeSmoother:
         self._solve_pending(t)
         k = len(self.keyframe_t) - 1
         if self.record_causal:
-            self.motion.record(self.recorder, t, self.estimate_values, k, self.backend_marginals() if self.causal_covariances else None)
+            self.motion.record(
+                self.recorder,
+                t,
+                self.estimate_values,
+                k,
+                self.backend_marginals() if self.causal_covariances else None,
+            )
 
     def backend_marginals(self):
         return _BackendMarginals(self.backend)
@@ -343,17 +441,25 @@ class KeyframeSmoother:
         position = np.asarray(fix.position, dtype=float)
         covariance = np.asarray(fix.covariance, dtype=float)
         if self.dimension != 3 or position.shape != (3,) or covariance.shape != (3, 3):
-            raise InputError(f"GPS fix at t={fix.t:.6f} s: expected a 3-D position and a (3, 3) covariance")
+            raise InputError(
+                f"GPS fix at t={fix.t:.6f} s: expected a 3-D position and a (3, 3) covariance"
+            )
         if not (np.all(np.isfinite(position)) and np.all(np.isfinite(covariance))):
             raise InputError(f"GPS fix at t={fix.t:.6f} s is not finite")
-        self.pending_graph.add(gtsam.GPSFactor(self.motion.pose_key(k), position, gtsam.noiseModel.Gaussian.Covariance(covariance)))
+        self.pending_graph.add(
+            gtsam.GPSFactor(
+                self.motion.pose_key(k), position, gtsam.noiseModel.Gaussian.Covariance(covariance)
+            )
+        )
 
     def _check_scan(self, scan: LandmarkScan) -> tuple[np.ndarray, np.ndarray]:
         points = np.asarray(scan.points, dtype=float)
         covariances = np.asarray(scan.covariances, dtype=float)
         d = self.dimension
         if points.ndim != 2 or points.shape[1] != d or covariances.shape != (points.shape[0], d, d):
-            raise InputError(f"landmark scan at t={scan.t:.6f} s: points {points.shape} / covariances {covariances.shape} do not match dimension {d}")
+            raise InputError(
+                f"landmark scan at t={scan.t:.6f} s: points {points.shape} / covariances {covariances.shape} do not match dimension {d}"
+            )
         if not np.all(np.isfinite(points)):
             raise InputError(f"landmark scan at t={scan.t:.6f} s contains non-finite points")
         for index, covariance in enumerate(covariances):
@@ -362,7 +468,9 @@ class KeyframeSmoother:
             raise InputError(f"landmark scan at t={scan.t:.6f} s repeats a landmark id")
         return points, covariances
 
-    def _point_factor(self, pose_key: int, landmark_key: int, point: np.ndarray, covariance: np.ndarray) -> gtsam.NonlinearFactor:
+    def _point_factor(
+        self, pose_key: int, landmark_key: int, point: np.ndarray, covariance: np.ndarray
+    ) -> gtsam.NonlinearFactor:
         if self.dimension == 2:
             return body_point_factor_2d(pose_key, landmark_key, point, covariance)
         if self.config.landmark_factor == "cartesian":
@@ -397,20 +505,35 @@ class KeyframeSmoother:
                 landmark = self._new_landmark(map_id, np.asarray(world, dtype=float), scan.t)
                 self.first_sightings[landmark.key] = (k, np.asarray(point, dtype=float))
                 if landmark.anchor_position is not None:  # a re-created anchor keeps its prior
-                    self.pending_graph.add(landmark_prior(landmark.key, landmark.anchor_position, self.config.anchor_sigma_m))
+                    self.pending_graph.add(
+                        landmark_prior(
+                            landmark.key, landmark.anchor_position, self.config.anchor_sigma_m
+                        )
+                    )
             assert landmark is not None
-            self.pending_graph.add(self._point_factor(self.motion.pose_key(k), landmark.key, point, covariance))
+            self.pending_graph.add(
+                self._point_factor(self.motion.pose_key(k), landmark.key, point, covariance)
+            )
             landmark.observations += 1
             landmark.last_t = scan.t
             self.pending_times[landmark.key] = float(scan.t)
             self.recorder.association(scan.t, index, map_id, is_new)
-        self.recorder.landmark_count(scan.t, sum(1 for lm in self.landmarks.values() if self._key_alive(lm.key)))
+        self.recorder.landmark_count(
+            scan.t, sum(1 for lm in self.landmarks.values() if self._key_alive(lm.key))
+        )
 
     def _key_alive(self, key: int) -> bool:
         return self.pending_values.exists(key) or self.backend.contains(key)
 
     # ------------------------------------------------------------------ association
-    def _associate(self, scan: LandmarkScan, points: np.ndarray, covariances: np.ndarray, pose, values: gtsam.Values) -> list[int]:
+    def _associate(
+        self,
+        scan: LandmarkScan,
+        points: np.ndarray,
+        covariances: np.ndarray,
+        pose,
+        values: gtsam.Values,
+    ) -> list[int]:
         """JCBB against the current map: map id per point, -1 new, -2 ambiguous."""
         from filters.association import associate_jcbb
 
@@ -420,7 +543,9 @@ class KeyframeSmoother:
         if not alive or len(points) == 0:
             return [-1] * len(points)
         current = self.backend.values([lm.key for lm in alive])
-        positions = np.array([current.atPoint3(lm.key) if d == 3 else current.atPoint2(lm.key) for lm in alive])
+        positions = np.array(
+            [current.atPoint3(lm.key) if d == 3 else current.atPoint2(lm.key) for lm in alive]
+        )
         rotation = pose.rotation().matrix()
         translation = pose.translation()
         predicted = (positions - translation) @ rotation
@@ -442,12 +567,16 @@ class KeyframeSmoother:
                 skew = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
                 jacobian[rows, :pose_dof] = np.hstack([skew, -np.eye(3)])
             else:
-                jacobian[rows, :pose_dof] = np.hstack([-np.eye(2), (-np.array([[0.0, -1.0], [1.0, 0.0]]) @ h)[:, None]])
+                jacobian[rows, :pose_dof] = np.hstack(
+                    [-np.eye(2), (-np.array([[0.0, -1.0], [1.0, 0.0]]) @ h)[:, None]]
+                )
             jacobian[rows, pose_dof + i * d : pose_dof + (i + 1) * d] = rotation.T
         predicted_cov = jacobian @ joint @ jacobian.T
         predicted_cov = 0.5 * (predicted_cov + predicted_cov.T)
         blocks = predicted_cov
-        result = associate_jcbb(points, covariances, predicted, blocks, gate_probability=self.config.gate_probability)
+        result = associate_jcbb(
+            points, covariances, predicted, blocks, gate_probability=self.config.gate_probability
+        )
         out = []
         for j, index in enumerate(result.assignments):
             if index >= 0:
@@ -489,11 +618,17 @@ class KeyframeSmoother:
             if not values.exists(landmark.key):
                 continue
             ids.append(landmark.map_id)
-            positions.append(values.atPoint3(landmark.key) if self.dimension == 3 else values.atPoint2(landmark.key))
+            positions.append(
+                values.atPoint3(landmark.key)
+                if self.dimension == 3
+                else values.atPoint2(landmark.key)
+            )
             covariances.append(vector_covariance(marginals.marginalCovariance(landmark.key)))
         if not ids:
             return LandmarkMap.empty(self.dimension)
-        return LandmarkMap(np.array(ids, dtype=int), np.array(positions), np.array(covariances), Frame.WORLD)
+        return LandmarkMap(
+            np.array(ids, dtype=int), np.array(positions), np.array(covariances), Frame.WORLD
+        )
 
     def smoothed_history(self, values: gtsam.Values, marginals) -> StateHistory:
         recorder = EstimateRecorder(self.dimension)

@@ -50,16 +50,24 @@ def bearing_range_covariance(point_body: np.ndarray, covariance: np.ndarray) -> 
     return 0.5 * (result + result.T)
 
 
-def body_point_factor_3d(pose_key: int, landmark_key: int, point_body: np.ndarray, covariance: np.ndarray) -> gtsam.NonlinearFactor:
+def body_point_factor_3d(
+    pose_key: int, landmark_key: int, point_body: np.ndarray, covariance: np.ndarray
+) -> gtsam.NonlinearFactor:
     """Native factor of a landmark measured at ``point_body`` (3,) with covariance (3, 3)."""
     distance = float(np.linalg.norm(point_body))
     if distance < MIN_RANGE_M:
-        raise InputError(f"landmark measured at {distance:.2e} m from the sensor: no bearing (minimum {MIN_RANGE_M} m)")
+        raise InputError(
+            f"landmark measured at {distance:.2e} m from the sensor: no bearing (minimum {MIN_RANGE_M} m)"
+        )
     noise = gtsam.noiseModel.Gaussian.Covariance(bearing_range_covariance(point_body, covariance))
-    return gtsam.BearingRangeFactor3D(pose_key, landmark_key, gtsam.Unit3(point_body), distance, noise)
+    return gtsam.BearingRangeFactor3D(
+        pose_key, landmark_key, gtsam.Unit3(point_body), distance, noise
+    )
 
 
-def cartesian_point_factor_3d(pose_key: int, landmark_key: int, point_body: np.ndarray, covariance: np.ndarray) -> gtsam.NonlinearFactor:
+def cartesian_point_factor_3d(
+    pose_key: int, landmark_key: int, point_body: np.ndarray, covariance: np.ndarray
+) -> gtsam.NonlinearFactor:
     """Python ``CustomFactor`` with the exact residual ``R^T (rho - r) - p`` (3,).
 
     Jacobians: with respect to the Pose3 tangent [omega, v] (right perturbation),
@@ -69,13 +77,17 @@ def cartesian_point_factor_3d(pose_key: int, landmark_key: int, point_body: np.n
     measured = np.asarray(point_body, dtype=float).copy()
     noise = gtsam.noiseModel.Gaussian.Covariance(np.asarray(covariance, dtype=float))
 
-    def error(factor: gtsam.CustomFactor, values: gtsam.Values, jacobians: list | None) -> np.ndarray:
+    def error(
+        factor: gtsam.CustomFactor, values: gtsam.Values, jacobians: list | None
+    ) -> np.ndarray:
         pose = values.atPose3(factor.keys()[0])
         landmark = values.atPoint3(factor.keys()[1])
         rotation = pose.rotation().matrix()
         local = rotation.T @ (landmark - pose.translation())
         if jacobians is not None:
-            skew_local = np.array([[0.0, -local[2], local[1]], [local[2], 0.0, -local[0]], [-local[1], local[0], 0.0]])
+            skew_local = np.array(
+                [[0.0, -local[2], local[1]], [local[2], 0.0, -local[0]], [-local[1], local[0], 0.0]]
+            )
             jacobians[0] = np.hstack([skew_local, -np.eye(3)])
             jacobians[1] = rotation.T
         return local - measured
@@ -83,13 +95,19 @@ def cartesian_point_factor_3d(pose_key: int, landmark_key: int, point_body: np.n
     return gtsam.CustomFactor(noise, [pose_key, landmark_key], error)
 
 
-def body_point_factor_2d(pose_key: int, landmark_key: int, point_body: np.ndarray, covariance: np.ndarray) -> gtsam.NonlinearFactor:
+def body_point_factor_2d(
+    pose_key: int, landmark_key: int, point_body: np.ndarray, covariance: np.ndarray
+) -> gtsam.NonlinearFactor:
     """Native ``DeltaFactor``: error ``pose.transformTo(point) - measured`` (2,)."""
     noise = gtsam.noiseModel.Gaussian.Covariance(np.asarray(covariance, dtype=float))
-    return gtsam_unstable.DeltaFactor(pose_key, landmark_key, np.asarray(point_body, dtype=float), noise)
+    return gtsam_unstable.DeltaFactor(
+        pose_key, landmark_key, np.asarray(point_body, dtype=float), noise
+    )
 
 
-def landmark_prior(landmark_key: int, position: np.ndarray, sigma_m: float) -> gtsam.NonlinearFactor:
+def landmark_prior(
+    landmark_key: int, position: np.ndarray, sigma_m: float
+) -> gtsam.NonlinearFactor:
     """Tight prior on a known (anchor) landmark's world position, 2-D or 3-D."""
     position = np.asarray(position, dtype=float)
     noise = gtsam.noiseModel.Isotropic.Sigma(position.size, sigma_m)
@@ -105,4 +123,6 @@ def check_measurement_covariance(covariance: np.ndarray, t: float, index: int) -
     try:
         np.linalg.cholesky(0.5 * (covariance + covariance.T))
     except np.linalg.LinAlgError:
-        raise InputError(f"landmark scan at t={t:.6f} s: covariance of point {index} is not positive definite") from None
+        raise InputError(
+            f"landmark scan at t={t:.6f} s: covariance of point {index} is not positive definite"
+        ) from None

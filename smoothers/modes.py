@@ -39,7 +39,9 @@ from smoothers.keyframe_smoother import KeyframeSmoother, SmootherConfig
 class Isam2Config(SmootherConfig):
     """Options of ``smoother-isam2``."""
 
-    causal_covariances: bool = Field(True, description="marginal covariances after every keyframe (NEES of the causal history)")
+    causal_covariances: bool = Field(
+        True, description="marginal covariances after every keyframe (NEES of the causal history)"
+    )
 
 
 class BatchConfig(SmootherConfig):
@@ -47,7 +49,8 @@ class BatchConfig(SmootherConfig):
 
     max_iterations: int = Field(100, ge=1, description="Levenberg-Marquardt iterations")
     initial_guess: Literal["incremental", "dead-reckoning"] = Field(
-        "incremental", description="LM start: the incremental (iSAM2) solution, or dead reckoning (the trap, for comparison)"
+        "incremental",
+        description="LM start: the incremental (iSAM2) solution, or dead reckoning (the trap, for comparison)",
     )
 
 
@@ -69,7 +72,12 @@ class SmootherIsam2(KeyframeSmoother):
         self.causal_covariances = config.causal_covariances
 
     def _make_backend(self) -> Isam2Backend:
-        return Isam2Backend(self.config.relinearize_threshold, self.config.relinearize_skip, self.config.extra_iterations, self.dimension)
+        return Isam2Backend(
+            self.config.relinearize_threshold,
+            self.config.relinearize_skip,
+            self.config.extra_iterations,
+            self.dimension,
+        )
 
     def estimate(self) -> Estimate:
         self._flush()
@@ -77,7 +85,11 @@ class SmootherIsam2(KeyframeSmoother):
         marginals = self.backend_marginals()
         smoothed = self.smoothed_history(values, marginals)
         self.recorder.extra("gtsam_update_seconds_total", self.backend.gtsam_seconds)
-        return self.recorder.build(landmarks=self.landmark_map(values, marginals), smoothed=smoothed, notes=tuple(self.notes))
+        return self.recorder.build(
+            landmarks=self.landmark_map(values, marginals),
+            smoothed=smoothed,
+            notes=tuple(self.notes),
+        )
 
 
 class SmootherBatch(KeyframeSmoother):
@@ -88,18 +100,31 @@ class SmootherBatch(KeyframeSmoother):
     mode: ClassVar[str] = "batch"
 
     def _make_backend(self) -> Isam2Backend:
-        return Isam2Backend(self.config.relinearize_threshold, self.config.relinearize_skip, self.config.extra_iterations, self.dimension)
+        return Isam2Backend(
+            self.config.relinearize_threshold,
+            self.config.relinearize_skip,
+            self.config.extra_iterations,
+            self.dimension,
+        )
 
     def estimate(self) -> Estimate:
         self._flush()
         incremental = self.backend.estimate()
-        guess = incremental if self.config.initial_guess == "incremental" else self._dead_reckoning_start()
+        guess = (
+            incremental
+            if self.config.initial_guess == "incremental"
+            else self._dead_reckoning_start()
+        )
         start = time.perf_counter()
         try:
-            result, iterations, start_error, final_error = levenberg_marquardt(self.full_graph, guess, self.config.max_iterations)
+            result, iterations, start_error, final_error = levenberg_marquardt(
+                self.full_graph, guess, self.config.max_iterations
+            )
             marginals = gtsam.Marginals(self.full_graph, result)
         except RuntimeError as error:
-            raise InputError(f"batch optimisation of {self.sequence_name} failed inside GTSAM: {str(error).splitlines()[0]}") from None
+            raise InputError(
+                f"batch optimisation of {self.sequence_name} failed inside GTSAM: {str(error).splitlines()[0]}"
+            ) from None
         self.recorder.extra("batch_seconds", time.perf_counter() - start)
         self.recorder.extra("batch_iterations", iterations)
         self.recorder.extra("batch_error_start", start_error)
@@ -111,7 +136,11 @@ class SmootherBatch(KeyframeSmoother):
             "batch smoother: causal history = smoothed history (a batch solution exists only at the end)",
         )
         self.final_values = result
-        return _replace_causal(self.recorder.build(landmarks=self.landmark_map(result, marginals), smoothed=smoothed, notes=notes))
+        return _replace_causal(
+            self.recorder.build(
+                landmarks=self.landmark_map(result, marginals), smoothed=smoothed, notes=notes
+            )
+        )
 
     def _dead_reckoning_start(self) -> gtsam.Values:
         """Open-loop start: motion increments chained from the prior, landmarks placed from
@@ -121,7 +150,10 @@ class SmootherBatch(KeyframeSmoother):
             values.insert(self.motion.dead_reckoning_step(k, values))
         for key, (k, point) in self.first_sightings.items():
             if not values.exists(key):
-                values.insert(key, np.asarray(self.motion.pose_of(values, k).transformFrom(point), dtype=float))
+                values.insert(
+                    key,
+                    np.asarray(self.motion.pose_of(values, k).transformFrom(point), dtype=float),
+                )
         return values
 
 
@@ -147,7 +179,12 @@ class SmootherFixedLag(KeyframeSmoother):
         self.smoothed_recorder_rows: dict[int, EstimateRecorder] = {}
 
     def _make_backend(self) -> FixedLagBackend:
-        return FixedLagBackend(self.config.lag_s, self.config.relinearize_threshold, self.config.relinearize_skip, self.dimension)
+        return FixedLagBackend(
+            self.config.lag_s,
+            self.config.relinearize_threshold,
+            self.config.relinearize_skip,
+            self.dimension,
+        )
 
     def _before_update(self, t_new: float) -> None:
         leaving = set(self.backend.leaving(t_new))
@@ -165,8 +202,15 @@ class SmootherFixedLag(KeyframeSmoother):
             self.keyframe_exports[k] = (recorder,)
         for landmark in self.landmarks.values():
             if landmark.key in leaving and values.exists(landmark.key):
-                position = values.atPoint3(landmark.key) if self.dimension == 3 else values.atPoint2(landmark.key)
-                self.departed_landmarks[landmark.map_id] = (np.asarray(position), vector_covariance(marginals.marginalCovariance(landmark.key)))
+                position = (
+                    values.atPoint3(landmark.key)
+                    if self.dimension == 3
+                    else values.atPoint2(landmark.key)
+                )
+                self.departed_landmarks[landmark.map_id] = (
+                    np.asarray(position),
+                    vector_covariance(marginals.marginalCovariance(landmark.key)),
+                )
 
     def _update(self, t: float) -> None:
         latest = self.keyframe_t[-1]
@@ -190,7 +234,9 @@ class SmootherFixedLag(KeyframeSmoother):
         smoothed = recorder.history()
         current = self.landmark_map(values, marginals)
         landmark_map = _merge_maps(current, self.departed_landmarks, self.dimension)
-        return self.recorder.build(landmarks=landmark_map, smoothed=smoothed, notes=tuple(self.notes))
+        return self.recorder.build(
+            landmarks=landmark_map, smoothed=smoothed, notes=tuple(self.notes)
+        )
 
 
 def _append_history(recorder: EstimateRecorder, history, dimension: int) -> None:
@@ -199,15 +245,35 @@ def _append_history(recorder: EstimateRecorder, history, dimension: int) -> None
     cov = None if pose.covariances is None else pose.covariances[0]
     recorder.pose(pose.t[0], pose.positions[0], pose.rotations[0], cov)
     for name, block in history.blocks.items():
-        recorder.block(name, block.t[0], block.values[0], None if block.covariances is None else block.covariances[0], block.frame)
+        recorder.block(
+            name,
+            block.t[0],
+            block.values[0],
+            None if block.covariances is None else block.covariances[0],
+            block.frame,
+        )
 
 
-def _merge_maps(current: LandmarkMap, departed: dict[int, tuple[np.ndarray, np.ndarray]], dimension: int) -> LandmarkMap:
+def _merge_maps(
+    current: LandmarkMap, departed: dict[int, tuple[np.ndarray, np.ndarray]], dimension: int
+) -> LandmarkMap:
     """Current window landmarks, plus those last seen only before leaving the window."""
-    entries = {int(i): (p, c) for i, p, c in zip(current.ids, current.positions, current.covariances if current.covariances is not None else [])}
+    entries = {
+        int(i): (p, c)
+        for i, p, c in zip(
+            current.ids,
+            current.positions,
+            current.covariances if current.covariances is not None else [],
+        )
+    }
     for map_id, entry in departed.items():
         entries.setdefault(map_id, entry)
     if not entries:
         return LandmarkMap.empty(dimension)
     ids = np.array(sorted(entries), dtype=int)
-    return LandmarkMap(ids, np.array([entries[i][0] for i in ids]), np.array([entries[i][1] for i in ids]), Frame.WORLD)
+    return LandmarkMap(
+        ids,
+        np.array([entries[i][0] for i in ids]),
+        np.array([entries[i][1] for i in ids]),
+        Frame.WORLD,
+    )

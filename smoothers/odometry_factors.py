@@ -38,8 +38,14 @@ class RelativePoseAccumulator:
             return  # a 3-D velocity is not used by the smoother
         values = np.asarray(odometry.relative_pose, dtype=float)
         covariance = np.asarray(odometry.covariance, dtype=float)
-        if values.shape != (6,) or covariance.shape != (6, 6) or not (np.all(np.isfinite(values)) and np.all(np.isfinite(covariance))):
-            raise InputError(f"odometry at t={odometry.t:.6f} s: expected a finite 6-D relative pose with a (6, 6) covariance")
+        if (
+            values.shape != (6,)
+            or covariance.shape != (6, 6)
+            or not (np.all(np.isfinite(values)) and np.all(np.isfinite(covariance)))
+        ):
+            raise InputError(
+                f"odometry at t={odometry.t:.6f} s: expected a finite 6-D relative pose with a (6, 6) covariance"
+            )
         delta = gtsam.Pose3(gtsam.Rot3.Expmap(values[:3]), values[3:])
         adjoint = delta.inverse().AdjointMap()
         composed = adjoint @ self.covariance @ adjoint.T + covariance

@@ -83,7 +83,9 @@ class OdometryAccumulator:
         self.count = 0
 
     def _append(self, delta: gtsam.Pose2, covariance: np.ndarray) -> None:
-        self.increment, self.covariance = compose_increment(self.increment, self.covariance, delta, covariance)
+        self.increment, self.covariance = compose_increment(
+            self.increment, self.covariance, delta, covariance
+        )
         self.count += 1
 
     def _integrate_velocity_until(self, t: float) -> None:
@@ -93,7 +95,9 @@ class OdometryAccumulator:
         if dt <= 0.0:
             return
         if t - self.held.t > self.max_gap_s:
-            raise InputError(f"odometry gap: no sample between t={self.held.t:.6f} s and t={t:.6f} s (max gap {self.max_gap_s} s)")
+            raise InputError(
+                f"odometry gap: no sample between t={self.held.t:.6f} s and t={t:.6f} s (max gap {self.max_gap_s} s)"
+            )
         v, omega = float(self.held.velocity[0]), float(self.held.velocity[1])
         jacobian = np.array([[dt, 0.0], [0.0, 0.0], [0.0, dt]])
         covariance = jacobian @ np.asarray(self.held.covariance, dtype=float)[:2, :2] @ jacobian.T
@@ -109,7 +113,9 @@ class OdometryAccumulator:
             self.cursor = odometry.t
             return
         if odometry.velocity is None:
-            raise InputError(f"odometry at t={odometry.t:.6f} s has neither a relative pose nor a velocity")
+            raise InputError(
+                f"odometry at t={odometry.t:.6f} s has neither a relative pose nor a velocity"
+            )
         self._integrate_velocity_until(odometry.t)
         self.held = odometry
         self.cursor = max(self.cursor, odometry.t)
@@ -145,7 +151,9 @@ class GyroAccumulator:
         if dt <= 0.0:
             return
         if t - self.held_t > self.max_gap_s:
-            raise InputError(f"gyro gap: no sample between t={self.held_t:.6f} s and t={t:.6f} s (max gap {self.max_gap_s} s)")
+            raise InputError(
+                f"gyro gap: no sample between t={self.held_t:.6f} s and t={t:.6f} s (max gap {self.max_gap_s} s)"
+            )
         self.dtheta += self.held_rate * dt
         self.elapsed += dt
         self.cursor = t
@@ -195,13 +203,23 @@ def constant_velocity_error(
 
 
 def constant_velocity_factor(
-    pose_key: int, next_pose_key: int, state_key: int, dtheta_m: float, dt: float, velocity_walk: float, gyro_density: float
+    pose_key: int,
+    next_pose_key: int,
+    state_key: int,
+    dtheta_m: float,
+    dt: float,
+    velocity_walk: float,
+    gyro_density: float,
 ) -> gtsam.CustomFactor:
     """The gyro-only motion factor between ``X_k``, ``X_{k+1}`` and ``V_k`` (module docstring)."""
     translation_var = max(velocity_walk**2 * dt**3 / 3.0, 1e-12)
-    noise = gtsam.noiseModel.Diagonal.Sigmas(np.sqrt([translation_var, translation_var, max(gyro_density**2 * dt, 1e-12)]))
+    noise = gtsam.noiseModel.Diagonal.Sigmas(
+        np.sqrt([translation_var, translation_var, max(gyro_density**2 * dt, 1e-12)])
+    )
 
-    def error(factor: gtsam.CustomFactor, values: gtsam.Values, jacobians: list | None) -> np.ndarray:
+    def error(
+        factor: gtsam.CustomFactor, values: gtsam.Values, jacobians: list | None
+    ) -> np.ndarray:
         keys = factor.keys()
         residual, blocks = constant_velocity_error(
             values.atPose2(keys[0]), values.atPose2(keys[1]), values.atVector(keys[2]), dtheta_m, dt
@@ -213,10 +231,16 @@ def constant_velocity_factor(
     return gtsam.CustomFactor(noise, [pose_key, next_pose_key, state_key], error)
 
 
-def predict_constant_velocity(pose_k: gtsam.Pose2, state_k: np.ndarray, dtheta_m: float, dt: float) -> gtsam.Pose2:
+def predict_constant_velocity(
+    pose_k: gtsam.Pose2, state_k: np.ndarray, dtheta_m: float, dt: float
+) -> gtsam.Pose2:
     """The motion model's mean: the pose at ``k+1`` from ``X_k``, ``V_k`` and the gyro."""
-    translation = pose_k.translation() + pose_k.rotation().matrix() @ rot2(0.5 * dtheta_m) @ state_k[:2] * dt
-    return gtsam.Pose2(translation[0], translation[1], pose_k.theta() + dtheta_m - float(state_k[2]) * dt)
+    translation = (
+        pose_k.translation() + pose_k.rotation().matrix() @ rot2(0.5 * dtheta_m) @ state_k[:2] * dt
+    )
+    return gtsam.Pose2(
+        translation[0], translation[1], pose_k.theta() + dtheta_m - float(state_k[2]) * dt
+    )
 
 
 class PlanarMotion:
@@ -235,7 +259,13 @@ class PlanarMotion:
     dimension = 2
 
     def __init__(
-        self, source: str, velocity_walk: float, gyro_density: float, gyro_bias_walk: float, lateral_sigma_m_s: float, max_gap_s: float
+        self,
+        source: str,
+        velocity_walk: float,
+        gyro_density: float,
+        gyro_bias_walk: float,
+        lateral_sigma_m_s: float,
+        max_gap_s: float,
     ) -> None:
         self.source = source
         self.velocity_walk = velocity_walk
@@ -268,27 +298,39 @@ class PlanarMotion:
         else:
             self.odometry.add(measurement)
 
-    def initial(self, start: InitialState, priors: InitialPriors) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    def initial(
+        self, start: InitialState, priors: InitialPriors
+    ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
         position = np.asarray(start.position, dtype=float)
         heading = float(np.asarray(start.rotation, dtype=float))
         pose = gtsam.Pose2(position[0], position[1], heading)
         graph = gtsam.NonlinearFactorGraph()
-        sigmas = np.array([priors.position_sigma_m, priors.position_sigma_m, priors.rotation_sigma_rad])
+        sigmas = np.array(
+            [priors.position_sigma_m, priors.position_sigma_m, priors.rotation_sigma_rad]
+        )
         graph.add(gtsam.PriorFactorPose2(X(0), pose, gtsam.noiseModel.Diagonal.Sigmas(sigmas)))
         values = gtsam.Values()
         values.insert(X(0), pose)
         if self.source == "gyro":
-            world_velocity = np.zeros(2) if start.velocity is None else np.asarray(start.velocity, dtype=float)
+            world_velocity = (
+                np.zeros(2) if start.velocity is None else np.asarray(start.velocity, dtype=float)
+            )
             state = np.r_[rot2(heading).T @ world_velocity, 0.0]
-            state_sigmas = np.array([priors.velocity_sigma_m_s] * 2 + [priors.gyro_bias_sigma_rad_s])
-            graph.add(gtsam.PriorFactorVector(V(0), state, gtsam.noiseModel.Diagonal.Sigmas(state_sigmas)))
+            state_sigmas = np.array(
+                [priors.velocity_sigma_m_s] * 2 + [priors.gyro_bias_sigma_rad_s]
+            )
+            graph.add(
+                gtsam.PriorFactorVector(V(0), state, gtsam.noiseModel.Diagonal.Sigmas(state_sigmas))
+            )
             values.insert(V(0), state)
             self.gyro.start(start.t)
         else:
             self.odometry.start(start.t)
         return graph, values
 
-    def close(self, k: int, t: float, estimate: gtsam.Values) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    def close(
+        self, k: int, t: float, estimate: gtsam.Values
+    ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
         graph = gtsam.NonlinearFactorGraph()
         values = gtsam.Values()
         previous = estimate.atPose2(X(k - 1))
@@ -296,18 +338,32 @@ class PlanarMotion:
             dtheta, dt = self.gyro.close(t)
             self.increments[k] = (dtheta, dt)
             if dt <= 0.0:
-                raise InputError(f"keyframe at t={t:.6f} s: no gyro time since the previous keyframe")
+                raise InputError(
+                    f"keyframe at t={t:.6f} s: no gyro time since the previous keyframe"
+                )
             state = estimate.atVector(V(k - 1))
-            graph.add(constant_velocity_factor(X(k - 1), X(k), V(k - 1), dtheta, dt, self.velocity_walk, self.gyro_density))
+            graph.add(
+                constant_velocity_factor(
+                    X(k - 1), X(k), V(k - 1), dtheta, dt, self.velocity_walk, self.gyro_density
+                )
+            )
             walk = np.sqrt([self.velocity_walk**2 * dt] * 2 + [self.gyro_bias_walk**2 * dt])
-            graph.add(gtsam.BetweenFactorVector(V(k - 1), V(k), np.zeros(3), gtsam.noiseModel.Diagonal.Sigmas(walk)))
+            graph.add(
+                gtsam.BetweenFactorVector(
+                    V(k - 1), V(k), np.zeros(3), gtsam.noiseModel.Diagonal.Sigmas(walk)
+                )
+            )
             values.insert(X(k), predict_constant_velocity(previous, state, dtheta, dt))
             values.insert(V(k), state)
         else:
             increment, covariance = self.odometry.close(t)
             self.increments[k] = (increment,)
             covariance = covariance + np.eye(3) * 1e-12
-            graph.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), increment, gtsam.noiseModel.Gaussian.Covariance(covariance)))
+            graph.add(
+                gtsam.BetweenFactorPose2(
+                    X(k - 1), X(k), increment, gtsam.noiseModel.Gaussian.Covariance(covariance)
+                )
+            )
             values.insert(X(k), previous.compose(increment))
         return graph, values
 
@@ -337,13 +393,36 @@ class PlanarMotion:
     def pose_of(values: gtsam.Values, k: int) -> gtsam.Pose2:
         return values.atPose2(X(k))
 
-    def record(self, recorder: EstimateRecorder, t: float, values: gtsam.Values, k: int, marginals: MarginalSource | None) -> None:
+    def record(
+        self,
+        recorder: EstimateRecorder,
+        t: float,
+        values: gtsam.Values,
+        k: int,
+        marginals: MarginalSource | None,
+    ) -> None:
         """Pose [x, y, theta] (and, gyro-only, body velocity and gyro bias) of keyframe ``k``."""
         pose = values.atPose2(X(k))
-        pose_cov = None if marginals is None else pose_covariance(marginals.marginalCovariance(X(k)))
+        pose_cov = (
+            None if marginals is None else pose_covariance(marginals.marginalCovariance(X(k)))
+        )
         recorder.pose(t, pose.translation(), pose.theta(), pose_cov)
         if self.source == "gyro":
             state = values.atVector(V(k))
-            state_cov = None if marginals is None else vector_covariance(marginals.marginalCovariance(V(k)))
-            recorder.block(BlockName.VELOCITY, t, state[:2], None if state_cov is None else state_cov[:2, :2], Frame.BODY)
-            recorder.block(BlockName.GYRO_BIAS, t, state[2:3], None if state_cov is None else state_cov[2:3, 2:3], Frame.BODY)
+            state_cov = (
+                None if marginals is None else vector_covariance(marginals.marginalCovariance(V(k)))
+            )
+            recorder.block(
+                BlockName.VELOCITY,
+                t,
+                state[:2],
+                None if state_cov is None else state_cov[:2, :2],
+                Frame.BODY,
+            )
+            recorder.block(
+                BlockName.GYRO_BIAS,
+                t,
+                state[2:3],
+                None if state_cov is None else state_cov[2:3, 2:3],
+                Frame.BODY,
+            )

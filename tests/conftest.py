@@ -15,5 +15,7 @@ def utias_folder() -> Path:
     """The real UTIAS MRCLAM dataset 1 beside the clone; skips when it is absent."""
     folder = SHARED_DATA / "utias-mrclam1"
     if not (folder / "Robot1_Odometry.dat").is_file():
-        pytest.skip(f"real UTIAS data not found at {folder} (it lives in ../shared/data beside the clone)")
+        pytest.skip(
+            f"real UTIAS data not found at {folder} (it lives in ../shared/data beside the clone)"
+        )
     return folder

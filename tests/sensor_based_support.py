@@ -15,7 +15,10 @@ def integrated_rotation(yaw_rate: float, t: np.ndarray) -> np.ndarray:
         return t[:, None, None] * np.eye(2)[None]
     a = yaw_rate * t
     s, c = np.sin(a), np.cos(a)
-    return np.stack([np.stack([s, c - 1.0], axis=-1), np.stack([1.0 - c, s], axis=-1)], axis=-2) / yaw_rate
+    return (
+        np.stack([np.stack([s, c - 1.0], axis=-1), np.stack([1.0 - c, s], axis=-1)], axis=-2)
+        / yaw_rate
+    )
 
 
 def planar_sequence(
@@ -60,7 +63,13 @@ def planar_sequence(
             body_directions = None if directions is None else np.zeros((0, 1, 2))
         covs = np.repeat((point_sigma_m**2 * np.eye(2))[None], len(body), axis=0)
         measurements.append(
-            LandmarkScan(t=float(time), points=body, covariances=covs, ids=np.arange(len(body)), directions=body_directions)
+            LandmarkScan(
+                t=float(time),
+                points=body,
+                covariances=covs,
+                ids=np.arange(len(body)),
+                directions=body_directions,
+            )
         )
     world_velocity = rot2(0.0) @ v
     return Sequence(
@@ -69,7 +78,13 @@ def planar_sequence(
         sensors=frozenset({Sensor.GYRO, Sensor.LANDMARKS}),
         stream=lambda: iter(measurements),
         noise=NoiseSpec(gyro_noise_density=gyro_noise_density, gyro_bias_sigma_rad_s=0.01),
-        initial_state=InitialState(t=0.0, position=np.zeros(2), rotation=np.array(0.0), velocity=world_velocity, velocity_sigma_m_s=0.5),
+        initial_state=InitialState(
+            t=0.0,
+            position=np.zeros(2),
+            rotation=np.array(0.0),
+            velocity=world_velocity,
+            velocity_sigma_m_s=0.5,
+        ),
     )
 
 

@@ -47,7 +47,9 @@ def test_window_recovers_r_from_simulated_updates_of_a_consistent_filter(residua
     np.testing.assert_allclose(window.estimate(), R, atol=0.08 * np.abs(R).max())
 
 
-def test_inflated_prior_covariance_drives_the_prior_form_to_its_floor_but_not_the_posterior_form() -> None:
+def test_inflated_prior_covariance_drives_the_prior_form_to_its_floor_but_not_the_posterior_form() -> (
+    None
+):
     """The failure the posterior form fixes: the filter believes P is 10x what it is and R is
     10x too large. The prior form W - H P- H^T goes negative (clipped to the floor); the
     posterior form stays between the truth and the filter's R (fails safe)."""
@@ -59,9 +61,13 @@ def test_inflated_prior_covariance_drives_the_prior_form_to_its_floor_but_not_th
     prior = SlidingWindowNoise(3000, floor_sigma, residual="prior")
     posterior = SlidingWindowNoise(3000, floor_sigma, residual="posterior")
     for _ in range(3000):
-        innovation = H @ rng.multivariate_normal(np.zeros(6), P) + rng.multivariate_normal(np.zeros(3), R)
+        innovation = H @ rng.multivariate_normal(np.zeros(6), P) + rng.multivariate_normal(
+            np.zeros(3), R
+        )
         prior.add(innovation[None], (H @ filter_P @ H.T)[None])
-        posterior.add((innovation - H @ K @ innovation)[None], (H @ (filter_P - K @ H @ filter_P) @ H.T)[None])
+        posterior.add(
+            (innovation - H @ K @ innovation)[None], (H @ (filter_P - K @ H @ filter_P) @ H.T)[None]
+        )
     assert np.linalg.eigvalsh(prior.estimate()).min() == pytest.approx(floor_sigma**2)
     true_trace, estimated_trace = np.trace(R), np.trace(posterior.estimate())
     assert true_trace < estimated_trace < np.trace(filter_R)
@@ -79,4 +85,6 @@ def test_ring_buffer_matches_a_plain_mean_of_the_last_w_samples() -> None:
     last = residuals[-7:]
     expected = last.T @ last / 7 - blocks[-7:].mean(axis=0)
     values, vectors = np.linalg.eigh(expected)
-    np.testing.assert_allclose(window.estimate(), (vectors * np.maximum(values, 1e-12)) @ vectors.T, atol=1e-12)
+    np.testing.assert_allclose(
+        window.estimate(), (vectors * np.maximum(values, 1e-12)) @ vectors.T, atol=1e-12
+    )

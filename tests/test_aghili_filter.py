@@ -41,7 +41,9 @@ def test_pose_covariance_boundary_matches_monte_carlo_of_internal_errors() -> No
     for dx in samples:
         true_A = quat.rotation_matrix(quat.apply_error(dx[:3], f.q))
         errors.append(np.r_[so3_log(A.T @ true_A), A.T @ dx[3:6]])
-    np.testing.assert_allclose(np.cov(np.array(errors).T), exported, atol=0.05 * np.abs(exported).max())
+    np.testing.assert_allclose(
+        np.cov(np.array(errors).T), exported, atol=0.05 * np.abs(exported).max()
+    )
 
 
 def test_bias_sign_and_initial_covariances_at_the_interface() -> None:
@@ -68,7 +70,9 @@ def test_bad_input_is_an_error_and_the_state_stays_finite() -> None:
         f.process(ImuSample(t + 0.05, np.array([np.nan, 0.0, 0.0]), np.array([0.0, 0.0, 9.81])))
     with pytest.raises(InputError, match="backwards"):
         f.process(ImuSample(t - 1.0, np.zeros(3), np.array([0.0, 0.0, 9.81])))
-    f.process(LandmarkScan(t + 0.01, np.zeros((0, 3)), np.zeros((0, 3, 3)), ids=np.zeros(0, dtype=int)))
+    f.process(
+        LandmarkScan(t + 0.01, np.zeros((0, 3)), np.zeros((0, 3, 3)), ids=np.zeros(0, dtype=int))
+    )
     f.process(ImuSample(t + 0.05, np.zeros(3), np.array([0.0, 0.0, 9.81])))
     assert f.counts["empty_scans"] == 1
     assert np.all(np.isfinite(f.P)) and np.all(np.isfinite(f.q)) and np.all(np.isfinite(f.r))
@@ -110,9 +114,13 @@ def test_adaptive_r_converges_from_a_tenfold_wrong_guess(seed: int) -> None:
     def position_rmse(estimate) -> float:
         pose = estimate.causal.pose
         index = np.clip(np.searchsorted(truth.t, pose.t), 0, len(truth.t) - 1)
-        return float(np.sqrt(np.mean(np.sum((pose.positions - truth.positions[index]) ** 2, axis=1))))
+        return float(
+            np.sqrt(np.mean(np.sum((pose.positions - truth.positions[index]) ** 2, axis=1)))
+        )
 
-    adaptive, adaptive_estimate = run(sequence, landmark_sigma_m=0.2 * np.sqrt(10.0), adaptive_noise=True)
+    adaptive, adaptive_estimate = run(
+        sequence, landmark_sigma_m=0.2 * np.sqrt(10.0), adaptive_noise=True
+    )
     _, reference_estimate = run(sequence, landmark_sigma_m=0.2, adaptive_noise=False)
     variances = np.diag(adaptive.noise_window.estimate())
     np.testing.assert_allclose(variances, 0.04, rtol=0.25)

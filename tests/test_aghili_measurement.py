@@ -15,7 +15,9 @@ def test_prediction_uses_the_transpose_as_eq_2_says() -> None:
     r = rng.normal(size=3)
     rho = rng.normal(size=(4, 3)) * 5
     np.testing.assert_allclose(predict(attitude, r, rho), (attitude.T @ (rho - r).T).T, atol=1e-12)
-    assert not np.allclose(predict(attitude, r, rho), (attitude @ (rho - r).T).T)  # eq. (11) as printed
+    assert not np.allclose(
+        predict(attitude, r, rho), (attitude @ (rho - r).T).T
+    )  # eq. (11) as printed
 
 
 def test_sensitivity_matches_finite_differences() -> None:
@@ -35,8 +37,12 @@ def test_sensitivity_matches_finite_differences() -> None:
         moved[2:] += dx[15:].reshape(-1, 3)
         return predict(quat.rotation_matrix(q_perturbed), r + dx[3:6], moved).ravel()
 
-    H = sensitivity(quat.rotation_matrix(q), predict(quat.rotation_matrix(q), r, world), slots, state_dim)
+    H = sensitivity(
+        quat.rotation_matrix(q), predict(quat.rotation_matrix(q), r, world), slots, state_dim
+    )
     step = 1e-6
-    numeric = np.column_stack([(h(step * e) - h(-step * e)) / (2 * step) for e in np.eye(state_dim)])
+    numeric = np.column_stack(
+        [(h(step * e) - h(-step * e)) / (2 * step) for e in np.eye(state_dim)]
+    )
     np.testing.assert_allclose(H, numeric, atol=1e-7)
     np.testing.assert_allclose(H[:, 6:15], 0.0)  # velocity and biases are not seen directly

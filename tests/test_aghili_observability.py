@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from datasets.rotations import so3_exp
-from filters.aghili.observability import observability_matrix, rank_report, segment_matrices, total_observability_matrix
+from filters.aghili.observability import (
+    observability_matrix,
+    rank_report,
+    segment_matrices,
+    total_observability_matrix,
+)
 
 ATTITUDE = so3_exp(np.array([0.05, -0.02, 0.7]))
 POSITION = np.array([1.0, 2.0, 0.3])
@@ -40,7 +45,14 @@ def test_single_anchor_is_rank_deficient_per_segment() -> None:
 def test_stripped_matrix_over_moving_segments_reported() -> None:
     anchors = np.array([[5.0, 0.0, 0.0]])
     segments = [
-        segment_matrices(so3_exp(np.array([0.0, 0.0, yaw])), POSITION + yaw, OMEGA * (1 + yaw), A_BAR + [yaw, 0, 0], anchors, LANDMARKS)
+        segment_matrices(
+            so3_exp(np.array([0.0, 0.0, yaw])),
+            POSITION + yaw,
+            OMEGA * (1 + yaw),
+            A_BAR + [yaw, 0, 0],
+            anchors,
+            LANDMARKS,
+        )
         for yaw in (0.0, 0.8, 1.6)
     ]
     stripped = total_observability_matrix(segments, [1.0, 1.0], stripped=True)
@@ -52,8 +64,8 @@ def test_gauge_rotation_is_in_the_null_space_of_a_single_anchor_and_not_of_three
     """Rotating vehicle, velocity and map about gravity through the one anchor leaves every
     predicted measurement unchanged (H u = 0), checked against H of eq. (10); finite
     differences of the nonlinear model (7b) agree; three non-collinear anchors see it."""
-    from filters.aghili.observability import gauge_rotation_direction
     from datasets.rotations import so3_exp as exp
+    from filters.aghili.observability import gauge_rotation_direction
 
     velocity = np.array([0.4, -0.2, 0.05])
     anchor = np.array([[5.0, 0.0, 0.0]])
@@ -70,7 +82,12 @@ def test_gauge_rotation_is_in_the_null_space_of_a_single_anchor_and_not_of_three
     np.testing.assert_allclose(after, before, atol=1e-9)
     anchors3 = np.array([[5.0, 0.0, 0.0], [0.0, 6.0, 1.0], [-4.0, -2.0, 2.0]])
     _, H3 = segment_matrices(ATTITUDE, POSITION, OMEGA, A_BAR, anchors3, LANDMARKS)
-    assert np.abs(H3 @ gauge_rotation_direction(ATTITUDE, POSITION, velocity, LANDMARKS, anchors3[0])).max() > 1.0
+    assert (
+        np.abs(
+            H3 @ gauge_rotation_direction(ATTITUDE, POSITION, velocity, LANDMARKS, anchors3[0])
+        ).max()
+        > 1.0
+    )
 
 
 def test_variance_along_a_direction_matches_the_scalar_estimator_variance() -> None:

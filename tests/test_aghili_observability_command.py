@@ -16,7 +16,9 @@ def table(argv, capsys) -> list[list[str]]:
 
 
 def test_three_anchors_full_rank_at_every_segment(capsys) -> None:
-    rows = table(["observability", "sim:aghili-rover", "--set", "anchors=3", "--set", "step_s=30"], capsys)
+    rows = table(
+        ["observability", "sim:aghili-rover", "--set", "anchors=3", "--set", "step_s=30"], capsys
+    )
     assert len(rows) == 5  # 144 s lap: t = 0, 30, ..., 120
     for t, rank, _, pi_sv, collinear, total, _, stripped, _ in rows:
         assert rank == "24" and collinear == "False" and float(pi_sv) > 1e-3
@@ -27,7 +29,9 @@ def test_one_anchor_deficient_per_segment_total_and_stripped_reported(capsys) ->
     """Per segment rank 21 of 24 (rotation about gravity and the two tilts through the anchor
     are lost); the total/stripped matrices over moving segments are what they are: full
     rank on the rover (the piecewise-constant artefact), printed, not forced."""
-    rows = table(["observability", "sim:aghili-rover", "--set", "anchors=1", "--set", "step_s=30"], capsys)
+    rows = table(
+        ["observability", "sim:aghili-rover", "--set", "anchors=1", "--set", "step_s=30"], capsys
+    )
     for row in rows:
         assert int(row[1]) == 21 and float(row[2]) < 1e-9 and row[3] == "-"
     ranks = [int(row[5]) for row in rows if row[5] != "-"]
@@ -48,6 +52,8 @@ def test_trajectory_function_finite_difference_inputs_on_a_straight_path() -> No
     rotations = np.repeat(np.eye(3)[None], len(times), axis=0)
     anchors = np.array([[5.0, 3.0, 1.0]])
     landmarks = np.array([[10.0, -4.0, 2.0], [20.0, 5.0, 0.5]])
-    reports = observability_along_trajectory(times, rotations, positions, anchors, landmarks, 10.0, 2, window=3)
+    reports = observability_along_trajectory(
+        times, rotations, positions, anchors, landmarks, 10.0, 2, window=3
+    )
     assert [report.segment.rank for report in reports] == [18] * 4
     assert reports[2].total is not None and reports[2].total.rank >= 18

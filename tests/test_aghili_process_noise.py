@@ -35,7 +35,10 @@ def relative_block_errors(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     roundoff = 1e-14 * np.abs(b).max()
     for i in range(5):
         for j in range(5):
-            block_a, block_b = a[3 * i : 3 * i + 3, 3 * j : 3 * j + 3], b[3 * i : 3 * i + 3, 3 * j : 3 * j + 3]
+            block_a, block_b = (
+                a[3 * i : 3 * i + 3, 3 * j : 3 * j + 3],
+                b[3 * i : 3 * i + 3, 3 * j : 3 * j + 3],
+            )
             if not np.any(block_a):
                 errors[i, j] = 0.0 if np.abs(block_b).max() < roundoff else np.inf
                 continue
@@ -73,7 +76,9 @@ def test_van_loan_matches_brute_force_quadrature() -> None:
     quadrature, _ = quad_vec(integrand, 0.0, tau, epsabs=1e-16, epsrel=1e-12)
     van_loan = process_noise_van_loan(F, G, sigma, tau)
     vehicle = van_loan[:15, :15]
-    vehicle = np.where(np.abs(vehicle) < 1e-15 * np.abs(vehicle).max(), 0.0, vehicle)  # drop round-off
+    vehicle = np.where(
+        np.abs(vehicle) < 1e-15 * np.abs(vehicle).max(), 0.0, vehicle
+    )  # drop round-off
     assert relative_block_errors(vehicle, quadrature[:15, :15]).max() < 1e-8
     np.testing.assert_allclose(van_loan[15:, :], 0.0, atol=0)  # landmarks get no process noise
 
@@ -95,7 +100,12 @@ def test_printed_G_feeding_accel_noise_into_the_bias_is_a_different_model() -> N
 def test_lambda_product_integral_matches_quadrature() -> None:
     omega, tau = np.array([0.9, -0.4, 0.6]), 0.6
     for i, j in [(1, 1), (2, 3), (4, 2), (4, 4)]:
-        integral, _ = quad_vec(lambda s: lambda_matrix(i, omega, s) @ lambda_matrix(j, omega, s).T, 0.0, tau, epsabs=1e-16)
+        integral, _ = quad_vec(
+            lambda s: lambda_matrix(i, omega, s) @ lambda_matrix(j, omega, s).T,
+            0.0,
+            tau,
+            epsabs=1e-16,
+        )
         np.testing.assert_allclose(lambda_product_integral(i, j, omega, tau), integral, atol=1e-13)
 
 
@@ -107,13 +117,24 @@ def test_printed_q11_is_right_to_its_order_other_printed_blocks_are_not() -> Non
     a_bar, attitude = inputs(6)
     exact = vehicle_process_noise(omega, a_bar, attitude, tau, *DENSITIES)
     printed = paper_printed_blocks(omega, tau, DENSITIES[0], DENSITIES[1], DENSITIES[2])
-    assert np.abs(printed["attitude"] - exact[0:3, 0:3]).max() / np.abs(exact[0:3, 0:3]).max() < 1e-9
+    assert (
+        np.abs(printed["attitude"] - exact[0:3, 0:3]).max() / np.abs(exact[0:3, 0:3]).max() < 1e-9
+    )
     bias_attitude = exact[9:12, 0:3]
     missing_first_order = DENSITIES[1] ** 2 * tau**3 / 12.0 * skew(omega)
-    np.testing.assert_allclose(printed["gyro_bias_attitude"] + missing_first_order, bias_attitude, atol=1e-3 * np.abs(missing_first_order).max())
-    assert np.abs(printed["gyro_bias_attitude"] - bias_attitude).max() > 0.5 * np.abs(missing_first_order).max()
+    np.testing.assert_allclose(
+        printed["gyro_bias_attitude"] + missing_first_order,
+        bias_attitude,
+        atol=1e-3 * np.abs(missing_first_order).max(),
+    )
+    assert (
+        np.abs(printed["gyro_bias_attitude"] - bias_attitude).max()
+        > 0.5 * np.abs(missing_first_order).max()
+    )
     # position: sigma_a^2 t^3/3 is only the accelerometer part (gyro and accel-bias parts missing)
-    assert np.abs(printed["position"] - exact[3:6, 3:6]).max() > 1e-4 * np.abs(exact[3:6, 3:6]).max()
+    assert (
+        np.abs(printed["position"] - exact[3:6, 3:6]).max() > 1e-4 * np.abs(exact[3:6, 3:6]).max()
+    )
     # the position-velocity block, printed as zero, is sigma_a^2 t^2/2 to leading order: a
     # correlation of sqrt(3)/2 between position and velocity noise
     correlation = exact[3, 6] / np.sqrt(exact[3, 3] * exact[6, 6])

@@ -30,7 +30,9 @@ def test_product_composes_rotations_in_the_papers_order() -> None:
     q1, q2 = random_quaternion(rng), random_quaternion(rng)
     # A3 = A1 A2  <=>  q3 = q2 (x) q1
     np.testing.assert_allclose(
-        quat.rotation_matrix(quat.multiply(q2, q1)), quat.rotation_matrix(q1) @ quat.rotation_matrix(q2), atol=1e-12
+        quat.rotation_matrix(quat.multiply(q2, q1)),
+        quat.rotation_matrix(q1) @ quat.rotation_matrix(q2),
+        atol=1e-12,
     )
     np.testing.assert_allclose(quat.multiply(quat.conjugate(q1), q1), quat.IDENTITY, atol=1e-12)
 
@@ -61,7 +63,9 @@ def test_propagation_is_a_body_frame_rotation() -> None:
     q0 = random_quaternion(rng)
     omega = np.array([0.2, -0.5, 0.9])
     q1 = quat.propagate(q0, omega, 0.4)
-    np.testing.assert_allclose(quat.rotation_matrix(q1), quat.rotation_matrix(q0) @ so3_exp(omega * 0.4), atol=1e-12)
+    np.testing.assert_allclose(
+        quat.rotation_matrix(q1), quat.rotation_matrix(q0) @ so3_exp(omega * 0.4), atol=1e-12
+    )
 
 
 def test_error_quaternion_is_a_right_perturbation_with_half_angle() -> None:
@@ -72,7 +76,9 @@ def test_error_quaternion_is_a_right_perturbation_with_half_angle() -> None:
     # A(q) = Abar A(dq): rotation vector 2 dq_v (exactly 2 asin|dq_v| along dq_v)
     relative = quat.rotation_matrix(q_nominal).T @ quat.rotation_matrix(q)
     rotvec = Rotation.from_matrix(relative).as_rotvec()
-    np.testing.assert_allclose(rotvec, 2.0 * np.arcsin(np.linalg.norm(dq_v)) * dq_v / np.linalg.norm(dq_v), atol=1e-14)
+    np.testing.assert_allclose(
+        rotvec, 2.0 * np.arcsin(np.linalg.norm(dq_v)) * dq_v / np.linalg.norm(dq_v), atol=1e-14
+    )
     np.testing.assert_allclose(relative, np.eye(3) + 2.0 * skew(dq_v), atol=2e-5)
     np.testing.assert_allclose(quat.error_vector(q, q_nominal), dq_v, atol=1e-14)
 

@@ -38,7 +38,9 @@ def case_inputs(omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def test_closed_form_transition_matches_expm(omega: np.ndarray, tau: float) -> None:
     a_bar, attitude = case_inputs(omega)
     F, _ = error_dynamics(omega, a_bar, attitude)
-    np.testing.assert_allclose(vehicle_transition(omega, a_bar, attitude, tau), expm(F * tau), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(
+        vehicle_transition(omega, a_bar, attitude, tau), expm(F * tau), rtol=0, atol=1e-10
+    )
 
 
 def test_landmark_block_of_phi_is_identity() -> None:
@@ -47,7 +49,9 @@ def test_landmark_block_of_phi_is_identity() -> None:
     F, G = error_dynamics(omega, a_bar, attitude, landmark_count=4)
     phi = expm(F * 0.1)
     assert F.shape == (27, 27) and G.shape == (27, 12)
-    np.testing.assert_allclose(phi[:VEHICLE_DIM, :VEHICLE_DIM], vehicle_transition(omega, a_bar, attitude, 0.1), atol=1e-10)
+    np.testing.assert_allclose(
+        phi[:VEHICLE_DIM, :VEHICLE_DIM], vehicle_transition(omega, a_bar, attitude, 0.1), atol=1e-10
+    )
     np.testing.assert_allclose(phi[VEHICLE_DIM:, VEHICLE_DIM:], np.eye(12), atol=0)
     np.testing.assert_allclose(phi[VEHICLE_DIM:, :VEHICLE_DIM], 0.0, atol=0)
 
@@ -76,6 +80,10 @@ def test_printed_transition_is_wrong() -> None:
     F, _ = error_dynamics(omega, a_bar, attitude)
     exact = expm(F * tau)
     printed = paper_printed_vehicle_transition(omega, a_bar, attitude, tau)
-    np.testing.assert_allclose(2.0 * printed[6:9, 0:3], exact[6:9, 0:3], atol=1e-12)  # factor 2 missing
+    np.testing.assert_allclose(
+        2.0 * printed[6:9, 0:3], exact[6:9, 0:3], atol=1e-12
+    )  # factor 2 missing
     assert np.abs(printed[6:9, 9:12] - exact[6:9, 9:12]).max() > 1e-4
-    assert np.abs(printed[3:6, 0:3] - exact[3:6, 0:3]).max() > 1e-3  # position-attitude block missing
+    assert (
+        np.abs(printed[3:6, 0:3] - exact[3:6, 0:3]).max() > 1e-3
+    )  # position-attitude block missing

@@ -14,7 +14,9 @@ from filters.association import (
 )
 
 
-def _common_shift_map(landmark_count: int, common_sigma: float, own_sigma: float) -> tuple[np.ndarray, np.ndarray]:
+def _common_shift_map(
+    landmark_count: int, common_sigma: float, own_sigma: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Landmarks on a line, predictions sharing one uncertain offset (a vehicle position error)."""
     predicted = np.stack([np.arange(landmark_count, dtype=float), np.zeros(landmark_count)], axis=1)
     joint = np.kron(np.full((landmark_count, landmark_count), common_sigma**2), np.eye(2))
@@ -37,7 +39,11 @@ def test_individual_distance_matches_direct_formula() -> None:
     distances = individual_compatibility(measured, r, predicted, joint, cross)
     for j in range(2):
         for i in range(3):
-            s = r[j] + joint[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] - cross[2 * j : 2 * j + 2, 2 * i : 2 * i + 2]
+            s = (
+                r[j]
+                + joint[2 * i : 2 * i + 2, 2 * i : 2 * i + 2]
+                - cross[2 * j : 2 * j + 2, 2 * i : 2 * i + 2]
+            )
             s = s - cross[2 * j : 2 * j + 2, 2 * i : 2 * i + 2].T
             nu = measured[j] - predicted[i]
             assert distances[j, i] == pytest.approx(nu @ np.linalg.solve(s, nu))
@@ -74,7 +80,9 @@ def test_jcbb_rejects_spurious_pairing_that_breaks_joint_compatibility() -> None
     measured = np.vstack([predicted[:3] + shift, predicted[3] - shift])  # last one: clutter near L3
     r = _scan_cov(4, 0.05)
     distances = individual_compatibility(measured, r, predicted, joint)
-    assert distances[3, 3] < chi2_gate(2, 0.99), "the clutter must be individually compatible for this test"
+    assert distances[3, 3] < chi2_gate(2, 0.99), (
+        "the clutter must be individually compatible for this test"
+    )
     jcbb = associate_jcbb(measured, r, predicted, joint)
     assert list(jcbb.assignments) == [0, 1, 2, -1]
     assert jcbb.ambiguous[3]
@@ -82,7 +90,9 @@ def test_jcbb_rejects_spurious_pairing_that_breaks_joint_compatibility() -> None
     assert nn.assignments[3] == 3
 
 
-def _clutter_trial(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _clutter_trial(
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A 2-D map seen from an uncertain pose, with clutter: returns (z, R, h, HPH^T, truth)."""
     landmarks = rng.uniform(-15.0, 15.0, size=(30, 2))
     pose_cov = np.diag([0.3**2, 0.3**2, np.deg2rad(3.0) ** 2])
@@ -117,7 +127,13 @@ def _clutter_trial(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np
     measured = np.vstack([z, clutter])
     truth = np.concatenate([visible, np.full(3, -1)])
     order = rng.permutation(len(measured))
-    return measured[order], _scan_cov(len(measured), measurement_sigma), predicted, joint, truth[order]
+    return (
+        measured[order],
+        _scan_cov(len(measured), measurement_sigma),
+        predicted,
+        joint,
+        truth[order],
+    )
 
 
 def test_jcbb_precision_and_recall_on_simulated_clutter() -> None:
@@ -141,7 +157,11 @@ def test_node_cap_is_respected_and_result_stays_jointly_compatible() -> None:
     # Dense, highly correlated, ambiguous map: the full tree is huge.
     predicted, joint = _common_shift_map(25, 3.0, 0.05)
     rng = np.random.default_rng(3)
-    measured = predicted[rng.permutation(25)[:15]] + 0.02 * rng.normal(size=(15, 2)) + np.array([0.37, 0.0])
+    measured = (
+        predicted[rng.permutation(25)[:15]]
+        + 0.02 * rng.normal(size=(15, 2))
+        + np.array([0.37, 0.0])
+    )
     r = _scan_cov(15, 0.05)
     result = associate_jcbb(measured, r, predicted, joint, max_nodes=40)
     assert result.nodes <= 40
@@ -178,6 +198,8 @@ def test_three_dimensional_measurements() -> None:
     predicted = rng.uniform(-5, 5, size=(6, 3))
     joint = np.kron(np.full((6, 6), 0.3**2), np.eye(3)) + 0.05**2 * np.eye(18)
     measured = predicted[[4, 1, 0]] + np.array([0.2, -0.1, 0.3])
-    result = associate_jcbb(measured, np.repeat(0.05**2 * np.eye(3)[None], 3, axis=0), predicted, joint)
+    result = associate_jcbb(
+        measured, np.repeat(0.05**2 * np.eye(3)[None], 3, axis=0), predicted, joint
+    )
     assert list(result.assignments) == [4, 1, 0]
     assert result.dof == 9

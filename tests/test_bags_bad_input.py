@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rosbags.rosbag1 import Writer as Writer1
-from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 
 from datasets.bags.reader import ReadReport, ReadSettings, read_stream
@@ -26,27 +26,49 @@ T = TYPESTORE.types
 
 def _header(t: float):
     ns = int(round(t * 1e9))
-    return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9), frame_id="x")
+    return T["std_msgs/msg/Header"](
+        stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9), frame_id="x"
+    )
 
 
 def _imu(t: float, value: float = 0.0):
     v = T["geometry_msgs/msg/Vector3"]
     return T["sensor_msgs/msg/Imu"](
-        header=_header(t), orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0), orientation_covariance=np.zeros(9),
-        angular_velocity=v(x=value, y=0.0, z=0.0), angular_velocity_covariance=np.zeros(9),
-        linear_acceleration=v(x=0.0, y=0.0, z=9.81), linear_acceleration_covariance=np.zeros(9),
+        header=_header(t),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation_covariance=np.zeros(9),
+        angular_velocity=v(x=value, y=0.0, z=0.0),
+        angular_velocity_covariance=np.zeros(9),
+        linear_acceleration=v(x=0.0, y=0.0, z=9.81),
+        linear_acceleration_covariance=np.zeros(9),
     )
 
 
 def _cloud(t: float, points: np.ndarray, names=("x", "y", "z")):
-    dtype = np.dtype({"names": list(names), "formats": ["<f4"] * len(names), "offsets": [4 * k for k in range(len(names))], "itemsize": 4 * len(names)})
+    dtype = np.dtype(
+        {
+            "names": list(names),
+            "formats": ["<f4"] * len(names),
+            "offsets": [4 * k for k in range(len(names))],
+            "itemsize": 4 * len(names),
+        }
+    )
     records = np.zeros(len(points), dtype=dtype)
     for k, name in enumerate(names):
         records[name] = points[:, k]
     return T["sensor_msgs/msg/PointCloud2"](
-        header=_header(t), height=1, width=len(points),
-        fields=[T["sensor_msgs/msg/PointField"](name=n, offset=4 * k, datatype=7, count=1) for k, n in enumerate(names)],
-        is_bigendian=False, point_step=dtype.itemsize, row_step=dtype.itemsize * len(points), data=np.frombuffer(records.tobytes(), dtype=np.uint8), is_dense=False,
+        header=_header(t),
+        height=1,
+        width=len(points),
+        fields=[
+            T["sensor_msgs/msg/PointField"](name=n, offset=4 * k, datatype=7, count=1)
+            for k, n in enumerate(names)
+        ],
+        is_bigendian=False,
+        point_step=dtype.itemsize,
+        row_step=dtype.itemsize * len(points),
+        data=np.frombuffer(records.tobytes(), dtype=np.uint8),
+        is_dense=False,
     )
 
 
@@ -57,21 +79,33 @@ def write_ros2(path: Path, messages: list[tuple[str, str, float, object]]) -> Pa
         for topic, msgtype, log_t, message in messages:
             if topic not in connections:
                 connections[topic] = writer.add_connection(topic, msgtype, typestore=TYPESTORE)
-            writer.write(connections[topic], int(round(log_t * 1e9)), TYPESTORE.serialize_cdr(message, msgtype))
+            writer.write(
+                connections[topic],
+                int(round(log_t * 1e9)),
+                TYPESTORE.serialize_cdr(message, msgtype),
+            )
     return path
 
 
 def _box_points(rng: np.random.Generator) -> np.ndarray:
     """Points on the walls of a 10 m x 8 m room around the sensor (enough for a cloud)."""
     angles = rng.uniform(-np.pi, np.pi, 2000)
-    ranges = np.minimum(5.0 / np.maximum(np.abs(np.cos(angles)), 1e-6), 4.0 / np.maximum(np.abs(np.sin(angles)), 1e-6))
+    ranges = np.minimum(
+        5.0 / np.maximum(np.abs(np.cos(angles)), 1e-6),
+        4.0 / np.maximum(np.abs(np.sin(angles)), 1e-6),
+    )
     z = rng.uniform(-0.5, 1.0, angles.size)
     return np.column_stack([ranges * np.cos(angles), ranges * np.sin(angles), z])
 
 
 @pytest.fixture(scope="module")
 def synthetic(tmp_path_factory) -> Path:
-    return write_lidar_bag(tmp_path_factory.mktemp("synthetic") / "good", 2, "ros1", {"duration_s": "0.5", "columns": "256"})
+    return write_lidar_bag(
+        tmp_path_factory.mktemp("synthetic") / "good",
+        2,
+        "ros1",
+        {"duration_s": "0.5", "columns": "256"},
+    )
 
 
 @pytest.mark.parametrize("kind", ["ros1", "sqlite3", "mcap"])
@@ -87,7 +121,9 @@ def test_truncated_bag_names_the_file(tmp_path, kind):
         shutil.copytree(good, broken)
         storage = next(p for p in broken.iterdir() if p.suffix in (".db3", ".mcap"))
         storage.rename(broken / storage.name.replace("whole", "truncated"))
-        (broken / "metadata.yaml").write_text((broken / "metadata.yaml").read_text().replace("whole", "truncated"))
+        (broken / "metadata.yaml").write_text(
+            (broken / "metadata.yaml").read_text().replace("whole", "truncated")
+        )
         storage = broken / storage.name.replace("whole", "truncated")
         storage.write_bytes(storage.read_bytes()[: storage.stat().st_size // 2])
     with pytest.raises(InputError, match=str(broken.name)):
@@ -97,15 +133,34 @@ def test_truncated_bag_names_the_file(tmp_path, kind):
 
 
 def test_bag_without_pointcloud2(tmp_path):
-    path = write_ros2(tmp_path / "imu_only", [("/imu", "sensor_msgs/msg/Imu", 1.0 + 0.01 * k, _imu(1.0 + 0.01 * k)) for k in range(5)])
-    with pytest.raises(InputError, match=r"imu_only: no sensor_msgs/msg/PointCloud2 topic for the lidar; topics: /imu \[sensor_msgs/msg/Imu\]"):
+    path = write_ros2(
+        tmp_path / "imu_only",
+        [("/imu", "sensor_msgs/msg/Imu", 1.0 + 0.01 * k, _imu(1.0 + 0.01 * k)) for k in range(5)],
+    )
+    with pytest.raises(
+        InputError,
+        match=r"imu_only: no sensor_msgs/msg/PointCloud2 topic for the lidar; topics: /imu \[sensor_msgs/msg/Imu\]",
+    ):
         load_bag(str(path), 0, {})
 
 
 def test_cloud_without_xyz_names_file_topic_time(tmp_path):
     rng = np.random.default_rng(0)
-    path = write_ros2(tmp_path / "no_xyz", [("/cloud", "sensor_msgs/msg/PointCloud2", 2.5, _cloud(2.5, _box_points(rng)[:, :1], names=("intensity",)))])
-    with pytest.raises(InputError, match=r"no_xyz, topic /cloud, t=2\.500000000: PointCloud2 has no x/y/z field \(fields: intensity\)"):
+    path = write_ros2(
+        tmp_path / "no_xyz",
+        [
+            (
+                "/cloud",
+                "sensor_msgs/msg/PointCloud2",
+                2.5,
+                _cloud(2.5, _box_points(rng)[:, :1], names=("intensity",)),
+            )
+        ],
+    )
+    with pytest.raises(
+        InputError,
+        match=r"no_xyz, topic /cloud, t=2\.500000000: PointCloud2 has no x/y/z field \(fields: intensity\)",
+    ):
         list(read_stream(path, ["/cloud"], ReadSettings(), ReadReport()))
 
 
@@ -115,12 +170,20 @@ def test_empty_and_nan_clouds_and_backward_stamps_are_counted(tmp_path):
     nan_cloud[:100] = np.nan
     messages = [
         ("/cloud", "sensor_msgs/msg/PointCloud2", 1.1, _cloud(1.0, _box_points(rng))),
-        ("/cloud", "sensor_msgs/msg/PointCloud2", 1.2, _cloud(1.1, np.zeros((0, 3)))),          # empty
-        ("/cloud", "sensor_msgs/msg/PointCloud2", 1.3, _cloud(1.2, np.full((50, 3), np.nan))),  # only NaN
-        ("/cloud", "sensor_msgs/msg/PointCloud2", 1.4, _cloud(1.3, nan_cloud)),                 # some NaN
+        ("/cloud", "sensor_msgs/msg/PointCloud2", 1.2, _cloud(1.1, np.zeros((0, 3)))),  # empty
+        (
+            "/cloud",
+            "sensor_msgs/msg/PointCloud2",
+            1.3,
+            _cloud(1.2, np.full((50, 3), np.nan)),
+        ),  # only NaN
+        ("/cloud", "sensor_msgs/msg/PointCloud2", 1.4, _cloud(1.3, nan_cloud)),  # some NaN
     ]
     imu_times = [1.00, 1.01, 1.02, 0.50, 1.03, 1.04]  # one stamp going backwards
-    messages += [("/imu", "sensor_msgs/msg/Imu", 1.0 + 0.01 * k, _imu(stamp)) for k, stamp in enumerate(imu_times)]
+    messages += [
+        ("/imu", "sensor_msgs/msg/Imu", 1.0 + 0.01 * k, _imu(stamp))
+        for k, stamp in enumerate(imu_times)
+    ]
     messages.sort(key=lambda item: item[2])
     path = write_ros2(tmp_path / "odd", messages)
     report = ReadReport()
@@ -133,7 +196,10 @@ def test_empty_and_nan_clouds_and_backward_stamps_are_counted(tmp_path):
     assert report.nonfinite_points == 150
     assert report.skipped[("/cloud", "empty cloud (no finite points)")] == 2
     assert report.skipped[("/imu", "stamp went backwards (or repeated)")] == 1
-    assert any("/imu at t=0.500000000: stamp went backwards (or repeated) (previous 1.020000000)" in line for line in report.lines())
+    assert any(
+        "/imu at t=0.500000000: stamp went backwards (or repeated) (previous 1.020000000)" in line
+        for line in report.lines()
+    )
     # the whole pipeline (KISS-ICP on the two usable clouds) runs and still reports the skips
     sequence = load_bag(str(path), 0, {"kiss.max_num_threads": "1"})
     kinds = [type(m).__name__ for m in sequence.measurements()]
@@ -142,7 +208,22 @@ def test_empty_and_nan_clouds_and_backward_stamps_are_counted(tmp_path):
 
 def test_cli_error_is_one_line_and_earlier_results_stay_valid(tmp_path, synthetic, capsys):
     out = tmp_path / "out"
-    assert main(["bag", str(synthetic), "--out", str(out), "--estimators", "dead-reckoning", "--no-plots", "--data", "kiss.max_num_threads=1"]) == 0
+    assert (
+        main(
+            [
+                "bag",
+                str(synthetic),
+                "--out",
+                str(out),
+                "--estimators",
+                "dead-reckoning",
+                "--no-plots",
+                "--data",
+                "kiss.max_num_threads=1",
+            ]
+        )
+        == 0
+    )
     before = (out / "frontend" / "metrics.json").read_text()
     table = (out / "table.md").read_text()
     assert "dead-reckoning" in table and "kiss-icp" in table
@@ -151,7 +232,12 @@ def test_cli_error_is_one_line_and_earlier_results_stay_valid(tmp_path, syntheti
     broken.write_bytes(synthetic.read_bytes()[:3000])
     assert main(["bag", str(broken), "--out", str(out), "--no-plots"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: ") and "broken.bag" in err and "Traceback" not in err and err.count("\n") == 1
+    assert (
+        err.startswith("error: ")
+        and "broken.bag" in err
+        and "Traceback" not in err
+        and err.count("\n") == 1
+    )
     assert (out / "frontend" / "metrics.json").read_text() == before
     json.loads(before)
     assert (out / "table.md").read_text() == table

@@ -40,7 +40,9 @@ def test_tiny_writes_tables_and_plots(uninterrupted: Path) -> None:
         assert (uninterrupted / name).is_file(), name
     records = list(csv.DictReader(io.StringIO((uninterrupted / "table.csv").read_text())))
     pairs = {(record["dataset"], record["estimator"]) for record in records}
-    assert pairs == {(d, e) for d in ("sim:circle", "sim:guerreiro-loop") for e in ("dead-reckoning", "ekf-slam")}
+    assert pairs == {
+        (d, e) for d in ("sim:circle", "sim:guerreiro-loop") for e in ("dead-reckoning", "ekf-slam")
+    }
     for record in records:
         assert record["status"] == "ok" and record["runs"] == str(RUNS)
         assert float(record["ate_rmse_m_mean"]) > 0
@@ -53,8 +55,17 @@ def test_tiny_writes_tables_and_plots(uninterrupted: Path) -> None:
     assert "\\toprule" in latex and "\\bottomrule" in latex and "$\\pm$" in latex
     for dataset in ("sim-circle", "sim-guerreiro-loop"):
         folder = uninterrupted / "plots" / dataset
-        for figure in ("trajectories", "pose_errors", "anees", "landmark_count", "time_vs_landmarks", "nis"):
-            assert (folder / f"{figure}.png").is_file() and (folder / f"{figure}.pdf").is_file(), f"{dataset}/{figure}"
+        for figure in (
+            "trajectories",
+            "pose_errors",
+            "anees",
+            "landmark_count",
+            "time_vs_landmarks",
+            "nis",
+        ):
+            assert (folder / f"{figure}.png").is_file() and (folder / f"{figure}.pdf").is_file(), (
+                f"{dataset}/{figure}"
+            )
 
 
 def _group_alive(group: int) -> bool:
@@ -71,8 +82,23 @@ def _group_alive(group: int) -> bool:
 
 def test_killed_sweep_resumes_without_redoing_runs(uninterrupted: Path, tmp_path: Path) -> None:
     out = tmp_path / "killed"
-    command = [sys.executable, "-m", "workbench.cli", "bench", "tiny", "--runs", str(RUNS), "--out", str(out), "--workers", "1", "--no-plots"]
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    command = [
+        sys.executable,
+        "-m",
+        "workbench.cli",
+        "bench",
+        "tiny",
+        "--runs",
+        str(RUNS),
+        "--out",
+        str(out),
+        "--workers",
+        "1",
+        "--no-plots",
+    ]
+    process = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
     deadline = time.monotonic() + 60
     try:
         while not _metrics_files(out):
@@ -98,17 +124,25 @@ def test_killed_sweep_resumes_without_redoing_runs(uninterrupted: Path, tmp_path
     for path, mtime in finished.items():
         assert path.stat().st_mtime_ns == mtime, f"{path} was redone"
     assert len(_metrics_files(out)) == 4 * RUNS
-    assert non_timing_columns((out / "table.csv").read_text()) == non_timing_columns((uninterrupted / "table.csv").read_text())
+    assert non_timing_columns((out / "table.csv").read_text()) == non_timing_columns(
+        (uninterrupted / "table.csv").read_text()
+    )
 
 
 def test_dask_scheduler_gives_the_same_table(uninterrupted: Path, tmp_path: Path) -> None:
     from distributed import LocalCluster
 
     out = tmp_path / "dask"
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
-        bench("tiny", RUNS, out, scheduler=cluster.scheduler_address, plots=False, show_progress=False)
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cluster:
+        bench(
+            "tiny", RUNS, out, scheduler=cluster.scheduler_address, plots=False, show_progress=False
+        )
     assert len(_metrics_files(out)) == 4 * RUNS
-    assert non_timing_columns((out / "table.csv").read_text()) == non_timing_columns((uninterrupted / "table.csv").read_text())
+    assert non_timing_columns((out / "table.csv").read_text()) == non_timing_columns(
+        (uninterrupted / "table.csv").read_text()
+    )
 
 
 def test_unknown_suite_is_a_clear_error(capsys: pytest.CaptureFixture[str]) -> None:
@@ -123,7 +157,9 @@ def test_average_runs_equals_the_classic_averaged_nees_for_poses() -> None:
     runs, steps, dof = 7, 40, 6
     values = rng.chisquare(dof, size=(runs, steps))
     t = np.arange(steps) * 0.1
-    ours = average_runs([RunNees(t, row, np.full(steps, dof), np.ones(steps, dtype=int)) for row in values])
+    ours = average_runs(
+        [RunNees(t, row, np.full(steps, dof), np.ones(steps, dtype=int)) for row in values]
+    )
     classic = averaged_nees(values, dof)
     np.testing.assert_allclose(ours.mean, classic.mean)
     np.testing.assert_allclose(ours.lower, classic.lower)
@@ -134,7 +170,12 @@ def test_average_runs_equals_the_classic_averaged_nees_for_poses() -> None:
 
 def test_average_runs_aligns_by_time_and_weights_landmark_units() -> None:
     # run B misses the first step: only the common stamps are averaged
-    a = RunNees(np.array([0.0, 1.0, 2.0]), np.array([2.0, 4.0, 6.0]), np.array([2, 4, 6]), np.array([1, 2, 3]))
+    a = RunNees(
+        np.array([0.0, 1.0, 2.0]),
+        np.array([2.0, 4.0, 6.0]),
+        np.array([2, 4, 6]),
+        np.array([1, 2, 3]),
+    )
     b = RunNees(np.array([1.0, 2.0]), np.array([2.0, 2.0]), np.array([2, 2]), np.array([1, 1]))
     averaged = average_runs([a, b])
     np.testing.assert_allclose(averaged.t, [1.0, 2.0])
@@ -146,16 +187,30 @@ def test_average_runs_flags_an_overconfident_estimator() -> None:
     steps, dof = 200, 3
     t = np.arange(steps, dtype=float)
     # errors twice the stated sigma: NEES four times chi-square
-    runs = [RunNees(t, 4.0 * rng.chisquare(dof, steps), np.full(steps, dof), np.ones(steps, dtype=int)) for _ in range(20)]
+    runs = [
+        RunNees(t, 4.0 * rng.chisquare(dof, steps), np.full(steps, dof), np.ones(steps, dtype=int))
+        for _ in range(20)
+    ]
     assert average_runs(runs).inside_fraction < 0.05
-    honest = [RunNees(t, rng.chisquare(dof, steps), np.full(steps, dof), np.ones(steps, dtype=int)) for _ in range(20)]
+    honest = [
+        RunNees(t, rng.chisquare(dof, steps), np.full(steps, dof), np.ones(steps, dtype=int))
+        for _ in range(20)
+    ]
     assert average_runs(honest).inside_fraction > 0.85
 
 
 def test_markdown_says_na_with_the_reason() -> None:
     empty = {column.key: None for column in COLUMNS}
     rows = [
-        Row("sim:x", "a", "ok", 2, 2, {**empty, "ate_rmse_m": Stat(1.5, 0.25, 2), "nis_mean": Stat(2.0, 0.5, 2)}, {}),
+        Row(
+            "sim:x",
+            "a",
+            "ok",
+            2,
+            2,
+            {**empty, "ate_rmse_m": Stat(1.5, 0.25, 2), "nis_mean": Stat(2.0, 0.5, 2)},
+            {},
+        ),
         Row("sim:x", "b", "n/a", 0, 0, empty, {}),
     ]
     text = markdown_table(rows, ["n/a sim:x / b: needs imu"])

@@ -16,17 +16,36 @@ def _room_world(extra: list[Polygon] | None = None) -> World:
     return World.from_polygons(tuple([room] + (extra or [])))
 
 
-def _scan(world: World, rng: np.random.Generator, range_sigma=0.0, bearing_sigma=0.0, columns=1440, sensor=(0.0, 0.0, 1.0)) -> np.ndarray:
+def _scan(
+    world: World,
+    rng: np.random.Generator,
+    range_sigma=0.0,
+    bearing_sigma=0.0,
+    columns=1440,
+    sensor=(0.0, 0.0, 1.0),
+) -> np.ndarray:
     """A single horizontal ring (plus a ring 1 deg up) from ``sensor``, body frame = world axes."""
     azimuth = np.linspace(-np.pi, np.pi, columns, endpoint=False)
     points = []
     for elevation in np.deg2rad([0.0, 1.0]):
         measured = azimuth + rng.normal(0.0, bearing_sigma, columns) if bearing_sigma else azimuth
-        directions = np.column_stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.full(columns, np.sin(elevation))])
+        directions = np.column_stack(
+            [
+                np.cos(elevation) * np.cos(azimuth),
+                np.cos(elevation) * np.sin(azimuth),
+                np.full(columns, np.sin(elevation)),
+            ]
+        )
         distance = cast_rays(world, np.tile(sensor, (columns, 1)), directions, 50.0)
         distance = distance + (rng.normal(0.0, range_sigma, columns) if range_sigma else 0.0)
         # the range is measured along the true ray; the bearing error moves the reported point
-        reported = np.column_stack([np.cos(elevation) * np.cos(measured), np.cos(elevation) * np.sin(measured), np.full(columns, np.sin(elevation))])
+        reported = np.column_stack(
+            [
+                np.cos(elevation) * np.cos(measured),
+                np.cos(elevation) * np.sin(measured),
+                np.full(columns, np.sin(elevation)),
+            ]
+        )
         points.append(distance[:, None] * reported)
     return np.concatenate(points)
 
@@ -49,7 +68,19 @@ def test_room_and_box_corners_exact_without_noise():
 
 def test_no_corner_between_shallow_angles_or_along_a_straight_wall():
     # a wall bent by 20 degrees: below the 35-degree minimum, so no corner at the bend
-    bent = Polygon(np.array([[-4.0, -3.0], [1.0, -3.0], [6.0, -3.0 + 5.0 * np.tan(np.deg2rad(20.0))], [6.0, 5.0], [-4.0, 5.0]]), 3.0, "boundary")
+    bent = Polygon(
+        np.array(
+            [
+                [-4.0, -3.0],
+                [1.0, -3.0],
+                [6.0, -3.0 + 5.0 * np.tan(np.deg2rad(20.0))],
+                [6.0, 5.0],
+                [-4.0, 5.0],
+            ]
+        ),
+        3.0,
+        "boundary",
+    )
     points = _scan(World.from_polygons((bent,)), np.random.default_rng(1))
     corners = extract_corners(points, CornerConfig(max_range_m=20.0))
     assert np.min(np.linalg.norm(corners.points[:, :2] - [1.0, -3.0], axis=1)) > 0.5
@@ -60,25 +91,40 @@ def test_no_corner_between_shallow_angles_or_along_a_straight_wall():
 def test_occlusion_edges_are_not_corners():
     # a pillar in front of a wall: the wall ends behind it are jump edges, not corners
     pillar = Polygon(np.array([[3.0, -0.3], [3.6, -0.3], [3.6, 0.3], [3.0, 0.3]]), 3.0, "obstacle")
-    corners = extract_corners(_scan(_room_world([pillar]), np.random.default_rng(2)), CornerConfig(max_range_m=20.0))
+    corners = extract_corners(
+        _scan(_room_world([pillar]), np.random.default_rng(2)), CornerConfig(max_range_m=20.0)
+    )
     true = np.array([[-4, -3], [6, -3], [6, 5], [-4, 5], [3.0, -0.3], [3.0, 0.3]], dtype=float)
-    assert np.all(np.linalg.norm(corners.points[:, None, :2] - true[None], axis=2).min(axis=1) < 0.02)
+    assert np.all(
+        np.linalg.norm(corners.points[:, None, :2] - true[None], axis=2).min(axis=1) < 0.02
+    )
 
 
 def test_split_finds_polyline_vertices():
     s = np.linspace(0, 1, 50)
-    polyline = np.concatenate([np.column_stack([s, 0 * s]), np.column_stack([1 + 0 * s[1:], s[1:]]), np.column_stack([1 - s[1:], 1 + 0 * s[1:]])])
+    polyline = np.concatenate(
+        [
+            np.column_stack([s, 0 * s]),
+            np.column_stack([1 + 0 * s[1:], s[1:]]),
+            np.column_stack([1 - s[1:], 1 + 0 * s[1:]]),
+        ]
+    )
     starts, ends = split_segments(polyline, np.array([0]), np.array([len(polyline) - 1]), 0.05)
     assert list(starts) == [0, 49, 98] and list(ends) == [49, 98, 147]
 
 
 def test_directions_and_planar_output():
-    corners = extract_corners(_scan(_room_world(), np.random.default_rng(3)), CornerConfig(max_range_m=20.0, directions=True, dimension=2))
+    corners = extract_corners(
+        _scan(_room_world(), np.random.default_rng(3)),
+        CornerConfig(max_range_m=20.0, directions=True, dimension=2),
+    )
     assert corners.points.shape == (4, 2) and corners.directions.shape == (4, 2, 2)
     assert np.allclose(np.linalg.norm(corners.directions, axis=2), 1.0)
     # at the room corner (6, -3) the walls run towards -x and +y
     k = int(np.argmin(np.linalg.norm(corners.points - [6.0, -3.0], axis=1)))
-    assert np.allclose(sorted(map(tuple, np.round(corners.directions[k], 3))), [(-1.0, 0.0), (0.0, 1.0)], atol=1e-3)
+    assert np.allclose(
+        sorted(map(tuple, np.round(corners.directions[k], 3))), [(-1.0, 0.0), (0.0, 1.0)], atol=1e-3
+    )
     scan = corners.scan(4.0)
     assert scan.t == 4.0 and scan.ids is None and scan.count == 4
 
@@ -88,13 +134,23 @@ def test_covariance_matches_monte_carlo():
     covariance) against the scatter of corners from 300 noisy scans of the same room.
     Bearing noise is kept small here: it biases the total-least-squares lines (see
     ``extract_corners``), which a covariance cannot describe."""
-    config = CornerConfig(max_range_m=20.0, range_sigma_m=0.03, bearing_sigma_rad=0.0005, dimension=2, split_threshold_m=0.15, merge_rms_m=0.06, model_sigma_m=0.0)
+    config = CornerConfig(
+        max_range_m=20.0,
+        range_sigma_m=0.03,
+        bearing_sigma_rad=0.0005,
+        dimension=2,
+        split_threshold_m=0.15,
+        merge_rms_m=0.06,
+        model_sigma_m=0.0,
+    )
     world = _room_world()
     rng = np.random.default_rng(4)
     target = np.array([6.0, -3.0])
     samples, predicted = [], []
     for _ in range(300):
-        corners = extract_corners(_scan(world, rng, config.range_sigma_m, config.bearing_sigma_rad), config)
+        corners = extract_corners(
+            _scan(world, rng, config.range_sigma_m, config.bearing_sigma_rad), config
+        )
         k = int(np.argmin(np.linalg.norm(corners.points - target, axis=1)))
         assert np.linalg.norm(corners.points[k] - target) < 0.1
         samples.append(corners.points[k])
@@ -113,15 +169,27 @@ def test_covariance_matches_monte_carlo():
 
 def test_bearing_noise_bias_is_small_and_spread_still_predicted():
     """With 2 mrad bearing noise the spread is still predicted; the line bias stays a few mm."""
-    config = CornerConfig(max_range_m=20.0, range_sigma_m=0.03, bearing_sigma_rad=0.002, dimension=2, split_threshold_m=0.15, merge_rms_m=0.06, model_sigma_m=0.0)
+    config = CornerConfig(
+        max_range_m=20.0,
+        range_sigma_m=0.03,
+        bearing_sigma_rad=0.002,
+        dimension=2,
+        split_threshold_m=0.15,
+        merge_rms_m=0.06,
+        model_sigma_m=0.0,
+    )
     rng = np.random.default_rng(5)
     target = np.array([6.0, -3.0])
     samples, predicted = [], []
     for _ in range(100):
-        corners = extract_corners(_scan(_room_world(), rng, config.range_sigma_m, config.bearing_sigma_rad), config)
+        corners = extract_corners(
+            _scan(_room_world(), rng, config.range_sigma_m, config.bearing_sigma_rad), config
+        )
         k = int(np.argmin(np.linalg.norm(corners.points - target, axis=1)))
         samples.append(corners.points[k])
         predicted.append(corners.covariances[k])
     samples = np.array(samples)
-    assert np.sqrt(np.diag(np.mean(predicted, axis=0))) == pytest.approx(samples.std(axis=0), rel=0.25)
+    assert np.sqrt(np.diag(np.mean(predicted, axis=0))) == pytest.approx(
+        samples.std(axis=0), rel=0.25
+    )
     assert np.linalg.norm(samples.mean(axis=0) - target) < 0.006

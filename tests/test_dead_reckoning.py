@@ -31,7 +31,9 @@ def test_noise_free_imu_integration_follows_truth(dataset):
 def test_pose2_inverse_adjoint_matches_gtsam():
     rng = np.random.default_rng(0)
     for increment in rng.normal(size=(5, 3)):
-        assert np.allclose(pose2_inverse_adjoint(increment), gtsam.Pose2(*increment).inverse().AdjointMap())
+        assert np.allclose(
+            pose2_inverse_adjoint(increment), gtsam.Pose2(*increment).inverse().AdjointMap()
+        )
 
 
 def test_imu_covariance_is_consistent_over_monte_carlo_runs():
@@ -42,7 +44,11 @@ def test_imu_covariance_is_consistent_over_monte_carlo_runs():
             runs.setdefault(name, []).append(series.nees)
     for name, dof in (("pose", 6), ("position", 3), ("velocity", 3)):
         result = averaged_nees(np.array(runs[name]), dof)
-        assert result.inside_fraction >= 0.8, (name, result.inside_fraction, float(result.mean.mean()))
+        assert result.inside_fraction >= 0.8, (
+            name,
+            result.inside_fraction,
+            float(result.mean.mean()),
+        )
 
 
 def test_gyro_only_planar_dead_reckoning_runs():

@@ -53,7 +53,9 @@ def boxminus(a: VehicleMean, b: VehicleMean, layout: VehicleLayout) -> np.ndarra
     return out
 
 
-def numeric_transition(step, mean: VehicleMean, layout: VehicleLayout, eps: float = 1e-6) -> np.ndarray:
+def numeric_transition(
+    step, mean: VehicleMean, layout: VehicleLayout, eps: float = 1e-6
+) -> np.ndarray:
     base = step(mean)
     columns = []
     for i in range(layout.size):
@@ -82,8 +84,12 @@ def test_odometry_transition_matches_finite_differences() -> None:
     layout = VehicleLayout(2, False, False)
     mean = random_mean(layout, rng)
     increment = np.array([0.4, -0.1, 0.2])
-    _, transition, process = predict_odometry_2d(mean, layout, increment, np.diag([1e-2, 1e-3, 1e-3]))
-    numeric = numeric_transition(lambda m: predict_odometry_2d(m, layout, increment, np.eye(3))[0], mean, layout)
+    _, transition, process = predict_odometry_2d(
+        mean, layout, increment, np.diag([1e-2, 1e-3, 1e-3])
+    )
+    numeric = numeric_transition(
+        lambda m: predict_odometry_2d(m, layout, increment, np.eye(3))[0], mean, layout
+    )
     np.testing.assert_allclose(transition, numeric, atol=1e-7)
     assert np.all(np.linalg.eigvalsh(process) >= -1e-15)
 
@@ -98,7 +104,9 @@ def test_gyro_cv_transition_matches_finite_differences(dimension: int, rotate: b
     dt = 1e-3  # the 3-D bias/rotation block is first order in dt (J_r(w dt) ~ I)
     noise = GyroNoise(1e-3, 1e-5, 0.1)
     _, transition, process = predict_gyro_cv(mean, layout, rate, dt, noise, rotate)
-    numeric = numeric_transition(lambda m: predict_gyro_cv(m, layout, rate, dt, noise, rotate)[0], mean, layout)
+    numeric = numeric_transition(
+        lambda m: predict_gyro_cv(m, layout, rate, dt, noise, rotate)[0], mean, layout
+    )
     np.testing.assert_allclose(transition, numeric, atol=5e-7)
     assert np.all(np.linalg.eigvalsh(process) >= -1e-15)
 
@@ -121,7 +129,9 @@ def test_observation_and_initialisation_jacobians(dimension: int) -> None:
     np.testing.assert_allclose(landmark_jac, mean.rotation_matrix().T)
     point = rng.normal(size=dimension) * 3
     world, dl_dx, dl_dz = initialise_landmark(mean, layout, point)
-    np.testing.assert_allclose(predict_observations(mean, layout, world[None])[0][0], point, atol=1e-12)
+    np.testing.assert_allclose(
+        predict_observations(mean, layout, world[None])[0][0], point, atol=1e-12
+    )
     for i in range(layout.size):
         delta = np.zeros(layout.size)
         delta[i] = eps
@@ -174,7 +184,12 @@ def planar_world(ids: bool, noise_free: bool = True, seed: int = 0, steps: int =
     """A robot once round a 5 m circle among 8 landmarks (revisiting the first ones);
     odometry relative poses at 10 Hz, scans at 5 Hz."""
     rng = np.random.default_rng(seed)
-    landmarks = np.array([[np.cos(a) * r, 2.0 + np.sin(a) * r] for a, r in zip(np.linspace(0, 2 * np.pi, 8, endpoint=False), [3, 8] * 4)])
+    landmarks = np.array(
+        [
+            [np.cos(a) * r, 2.0 + np.sin(a) * r]
+            for a, r in zip(np.linspace(0, 2 * np.pi, 8, endpoint=False), [3, 8] * 4)
+        ]
+    )
     dt, speed, rate = 0.1, 0.5, 0.1
     odo_cov = np.diag([1e-4, 1e-4, 1e-5])
     point_cov = np.eye(2) * 0.01
@@ -183,7 +198,9 @@ def planar_world(ids: bool, noise_free: bool = True, seed: int = 0, steps: int =
     for k in range(1, steps + 1):
         increment = np.array([speed * dt, 0.0, rate * dt])
         pose = np.array([*pose[:2] + rot2(pose[2]) @ increment[:2], pose[2] + increment[2]])
-        measured = increment if noise_free else increment + rng.multivariate_normal(np.zeros(3), odo_cov)
+        measured = (
+            increment if noise_free else increment + rng.multivariate_normal(np.zeros(3), odo_cov)
+        )
         measurements.append(Odometry(t=k * dt, covariance=odo_cov, relative_pose=measured, dt=dt))
         if k % 2 == 0:
             body = (landmarks - pose[:2]) @ rot2(pose[2])
@@ -192,7 +209,12 @@ def planar_world(ids: bool, noise_free: bool = True, seed: int = 0, steps: int =
             if not noise_free:
                 points = points + rng.multivariate_normal(np.zeros(2), point_cov, size=len(visible))
             measurements.append(
-                LandmarkScan(t=k * dt, points=points, covariances=np.repeat(point_cov[None], len(visible), 0), ids=visible if ids else None)
+                LandmarkScan(
+                    t=k * dt,
+                    points=points,
+                    covariances=np.repeat(point_cov[None], len(visible), 0),
+                    ids=visible if ids else None,
+                )
             )
     return Sequence(
         name="test:planar",
@@ -234,7 +256,9 @@ def test_noise_free_planar_run_recovers_the_map(ids: bool) -> None:
 
 
 def test_noisy_planar_run_is_consistent_and_jcbb_is_precise() -> None:
-    truth_ids = [scan.ids for scan in planar_world(ids=True).measurements() if isinstance(scan, LandmarkScan)]
+    truth_ids = [
+        scan.ids for scan in planar_world(ids=True).measurements() if isinstance(scan, LandmarkScan)
+    ]
     _, with_ids = run(planar_world(ids=True, noise_free=False, seed=7))
     _, without = run(planar_world(ids=False, noise_free=False, seed=7))
     assert len(with_ids.landmarks) == 8
@@ -246,9 +270,13 @@ def test_noisy_planar_run_is_consistent_and_jcbb_is_precise() -> None:
     used = diagnostics.assoc_landmark_id >= 0
     majority = {}
     for map_id in np.unique(diagnostics.assoc_landmark_id[used]):
-        values, counts = np.unique(true_of_record[diagnostics.assoc_landmark_id == map_id], return_counts=True)
+        values, counts = np.unique(
+            true_of_record[diagnostics.assoc_landmark_id == map_id], return_counts=True
+        )
         majority[map_id] = values[np.argmax(counts)]
-    correct = [majority[m] == t for m, t in zip(diagnostics.assoc_landmark_id[used], true_of_record[used])]
+    correct = [
+        majority[m] == t for m, t in zip(diagnostics.assoc_landmark_id[used], true_of_record[used])
+    ]
     assert np.mean(correct) > 0.99
     assert used.mean() > 0.95
     assert 8 <= len(without.landmarks) <= 10  # a 0.1 % tail of sightings may start a duplicate
@@ -264,14 +292,23 @@ def test_gyro_model_exports_velocity_and_bias_blocks() -> None:
         position = position + rot2(heading) @ velocity_body * dt
         measurements.append(GyroSample(t=k * dt, rate=np.array([0.05])))
         body = (landmarks - position) @ rot2(heading)
-        measurements.append(LandmarkScan(t=k * dt, points=body, covariances=np.repeat(np.eye(2)[None] * 1e-3, 3, 0), ids=np.arange(3)))
+        measurements.append(
+            LandmarkScan(
+                t=k * dt,
+                points=body,
+                covariances=np.repeat(np.eye(2)[None] * 1e-3, 3, 0),
+                ids=np.arange(3),
+            )
+        )
     sequence = Sequence(
         name="test:gyro",
         dimension=2,
         sensors=frozenset({Sensor.GYRO, Sensor.LANDMARKS}),
         stream=lambda: iter(measurements),
         noise=NoiseSpec(gyro_noise_density=1e-3, gyro_bias_walk=1e-6, gyro_bias_sigma_rad_s=0.01),
-        initial_state=InitialState(t=0.0, position=np.zeros(2), rotation=np.array(0.0), velocity=np.array([0.5, 0.0])),
+        initial_state=InitialState(
+            t=0.0, position=np.zeros(2), rotation=np.array(0.0), velocity=np.array([0.5, 0.0])
+        ),
     )
     estimator, estimate = run(sequence)
     assert estimator.input is Sensor.GYRO
@@ -297,14 +334,23 @@ def test_three_dimensional_gyro_run_tracks_a_noise_free_helix() -> None:
         measurements.append(GyroSample(t=k * dt, rate=omega.copy()))
         if k % 5 == 0:
             body = (landmarks - position) @ rotation
-            measurements.append(LandmarkScan(t=k * dt, points=body, covariances=np.repeat(np.eye(3)[None] * 1e-4, 12, 0), ids=np.arange(12)))
+            measurements.append(
+                LandmarkScan(
+                    t=k * dt,
+                    points=body,
+                    covariances=np.repeat(np.eye(3)[None] * 1e-4, 12, 0),
+                    ids=np.arange(12),
+                )
+            )
     sequence = Sequence(
         name="test:helix",
         dimension=3,
         sensors=frozenset({Sensor.GYRO, Sensor.LANDMARKS}),
         stream=lambda: iter(measurements),
         noise=NoiseSpec(gyro_noise_density=1e-4, gyro_bias_walk=1e-6, gyro_bias_sigma_rad_s=1e-3),
-        initial_state=InitialState(t=0.0, position=np.zeros(3), rotation=np.array([1.0, 0, 0, 0]), velocity=v_body.copy()),
+        initial_state=InitialState(
+            t=0.0, position=np.zeros(3), rotation=np.array([1.0, 0, 0, 0]), velocity=v_body.copy()
+        ),
     )
     _, estimate = run(sequence, acceleration_density=0.05)
     pose = estimate.causal.pose
@@ -320,9 +366,13 @@ def test_three_dimensional_gyro_run_tracks_a_noise_free_helix() -> None:
 def test_time_going_backwards_is_an_input_error() -> None:
     sequence = planar_world(ids=True)
     estimator = EkfSlam(EkfSlamConfig(), sequence)
-    estimator.process(Odometry(t=1.0, covariance=np.eye(3) * 1e-4, relative_pose=np.zeros(3), dt=0.1))
+    estimator.process(
+        Odometry(t=1.0, covariance=np.eye(3) * 1e-4, relative_pose=np.zeros(3), dt=0.1)
+    )
     with pytest.raises(InputError, match="backwards"):
-        estimator.process(Odometry(t=0.5, covariance=np.eye(3) * 1e-4, relative_pose=np.zeros(3), dt=0.1))
+        estimator.process(
+            Odometry(t=0.5, covariance=np.eye(3) * 1e-4, relative_pose=np.zeros(3), dt=0.1)
+        )
 
 
 def test_id_association_without_ids_is_an_input_error() -> None:
@@ -333,9 +383,13 @@ def test_id_association_without_ids_is_an_input_error() -> None:
 def test_motion_gap_is_logged_and_widens_the_pose_covariance() -> None:
     sequence = planar_world(ids=True)
     estimator = EkfSlam(EkfSlamConfig(max_gap_s=1.0), sequence)
-    estimator.process(Odometry(t=0.1, covariance=np.eye(3) * 1e-6, relative_pose=np.zeros(3), dt=0.1))
+    estimator.process(
+        Odometry(t=0.1, covariance=np.eye(3) * 1e-6, relative_pose=np.zeros(3), dt=0.1)
+    )
     before = estimator.covariance[:3, :3].copy()
-    estimator.process(Odometry(t=5.1, covariance=np.eye(3) * 1e-6, relative_pose=np.zeros(3), dt=5.0))
+    estimator.process(
+        Odometry(t=5.1, covariance=np.eye(3) * 1e-6, relative_pose=np.zeros(3), dt=5.0)
+    )
     estimate = estimator.estimate()
     gaps = [event for event in estimate.diagnostics.events if event.kind == "motion_gap"]
     assert len(gaps) == 1 and gaps[0].details["gap_s"] == pytest.approx(5.0)
@@ -345,12 +399,26 @@ def test_motion_gap_is_logged_and_widens_the_pose_covariance() -> None:
 def test_landmark_seen_once_is_kept_or_pruned() -> None:
     measurements = [
         Odometry(t=0.1, covariance=np.eye(3) * 1e-6, relative_pose=np.array([0.1, 0, 0]), dt=0.1),
-        LandmarkScan(t=0.1, points=np.array([[2.0, 0.0], [3.0, 1.0]]), covariances=np.repeat(np.eye(2)[None] * 0.01, 2, 0), ids=np.array([1, 2])),
+        LandmarkScan(
+            t=0.1,
+            points=np.array([[2.0, 0.0], [3.0, 1.0]]),
+            covariances=np.repeat(np.eye(2)[None] * 0.01, 2, 0),
+            ids=np.array([1, 2]),
+        ),
     ]
     for k in range(2, 30):
-        measurements.append(Odometry(t=0.1 * k, covariance=np.eye(3) * 1e-6, relative_pose=np.array([0.1, 0, 0]), dt=0.1))
         measurements.append(
-            LandmarkScan(t=0.1 * k, points=np.array([[2.0 - 0.1 * (k - 1), 0.0]]), covariances=np.eye(2)[None] * 0.01, ids=np.array([1]))
+            Odometry(
+                t=0.1 * k, covariance=np.eye(3) * 1e-6, relative_pose=np.array([0.1, 0, 0]), dt=0.1
+            )
+        )
+        measurements.append(
+            LandmarkScan(
+                t=0.1 * k,
+                points=np.array([[2.0 - 0.1 * (k - 1), 0.0]]),
+                covariances=np.eye(2)[None] * 0.01,
+                ids=np.array([1]),
+            )
         )
     sequence = Sequence(
         name="test:once",
@@ -385,7 +453,14 @@ def test_scan_between_motion_samples_does_not_shorten_the_next_interval() -> Non
     sequence = planar_world(ids=True)
     estimator = EkfSlam(EkfSlamConfig(), sequence)
     estimator.process(Odometry(t=0.1, covariance=np.eye(2) * 1e-4, velocity=np.array([1.0, 0.0])))
-    estimator.process(LandmarkScan(t=0.15, points=np.array([[2.0, 0.0]]), covariances=np.eye(2)[None] * 0.01, ids=np.array([0])))
+    estimator.process(
+        LandmarkScan(
+            t=0.15,
+            points=np.array([[2.0, 0.0]]),
+            covariances=np.eye(2)[None] * 0.01,
+            ids=np.array([0]),
+        )
+    )
     estimator.process(Odometry(t=0.2, covariance=np.eye(2) * 1e-4, velocity=np.array([1.0, 0.0])))
     # 0.1 m per 0.1 s interval, from x = 0 at t = 0
     assert estimator.vehicle.position[0] == pytest.approx(0.2)
@@ -395,7 +470,9 @@ def test_scan_between_motion_samples_does_not_shorten_the_next_interval() -> Non
     ("dataset", "options", "dof"),
     [("sim:guerreiro-loop", {"duration_s": "30"}, 2), ("sim:circle", {"duration_s": "15"}, 3)],
 )
-def test_gyro_driven_runs_on_the_simulator_are_accurate_and_consistent(dataset: str, options: dict, dof: int) -> None:
+def test_gyro_driven_runs_on_the_simulator_are_accurate_and_consistent(
+    dataset: str, options: dict, dof: int
+) -> None:
     from workbench.metrics.summary import compute_metrics
     from workbench.registry import load_dataset
     from workbench.runner import run_estimator
@@ -407,5 +484,7 @@ def test_gyro_driven_runs_on_the_simulator_are_accurate_and_consistent(dataset: 
     assert metrics["ate_rmse_m"] < 0.1
     assert 0.8 * dof < metrics["nis_mean"] < 1.2 * dof
     pose_dof = 3 if sequence.dimension == 2 else 6
-    assert metrics["nees_pose_mean"] < 2.0 * pose_dof  # a single short run: loose, but catches a broken covariance
+    assert (
+        metrics["nees_pose_mean"] < 2.0 * pose_dof
+    )  # a single short run: loose, but catches a broken covariance
     assert estimate.causal.block(BlockName.VELOCITY).frame == "world"

@@ -47,8 +47,12 @@ def test_kitti_stream_is_time_ordered_starts_after_the_imu_gap_and_depends_on_th
     assert imu_t[0] <= sequence.initial_state.t and np.max(np.diff(imu_t)) < 0.05
     other = load_dataset("kitti-imu-gps", 2, {"duration_s": "30"})
     again = load_dataset("kitti-imu-gps", 1, {"duration_s": "30"})
-    assert np.array_equal(again.ground_truth.held_out_positions[0], sequence.ground_truth.held_out_positions[0])
-    assert not np.array_equal(other.ground_truth.held_out_positions[0], sequence.ground_truth.held_out_positions[0])
+    assert np.array_equal(
+        again.ground_truth.held_out_positions[0], sequence.ground_truth.held_out_positions[0]
+    )
+    assert not np.array_equal(
+        other.ground_truth.held_out_positions[0], sequence.ground_truth.held_out_positions[0]
+    )
 
 
 def test_malformed_kitti_files_are_input_errors_naming_file_and_line(tmp_path):
@@ -72,10 +76,14 @@ def test_isam2_on_kitti_beats_dead_reckoning_on_held_out_fixes():
     held_t, held_positions = sequence.ground_truth.held_out_positions
 
     def holdout_rmse(trajectory) -> float:
-        estimated = np.column_stack([np.interp(held_t, trajectory.t, trajectory.positions[:, i]) for i in range(3)])
+        estimated = np.column_stack(
+            [np.interp(held_t, trajectory.t, trajectory.positions[:, i]) for i in range(3)]
+        )
         return float(np.sqrt(np.mean(np.sum((estimated - held_positions) ** 2, axis=1))))
 
-    smoother = SmootherIsam2(SmootherIsam2.Config(keyframe_imu_stride=10, causal_covariances=False), sequence)
+    smoother = SmootherIsam2(
+        SmootherIsam2.Config(keyframe_imu_stride=10, causal_covariances=False), sequence
+    )
     reckoning = DeadReckoning(DeadReckoning.Config(), sequence)
     for measurement in sequence.measurements():
         smoother.process(measurement)

@@ -25,7 +25,17 @@ def runs(tmp_path_factory) -> dict[str, Path]:
     out = {}
     for name, fmt, extra in (("ros1", "ros1", {}), ("ros2", "ros2", {"storage": "mcap"})):
         bag = write_lidar_bag(root / f"corridor_{name}", 7, fmt, {**SEGMENT, **extra})
-        rows = bag_command(bag, root / f"out_{name}", None, None, None, "dead-reckoning", ["kiss.max_num_threads=1"], plots=False, quiet=True)
+        rows = bag_command(
+            bag,
+            root / f"out_{name}",
+            None,
+            None,
+            None,
+            "dead-reckoning",
+            ["kiss.max_num_threads=1"],
+            plots=False,
+            quiet=True,
+        )
         assert [row["estimator"] for row in rows] == ["kiss-icp (front end)", "dead-reckoning"]
         out[name] = root / f"out_{name}"
     return out
@@ -65,7 +75,9 @@ def test_ros1_and_ros2_agree(runs):
 
 def test_normalized_times():
     assert normalized_point_times(None).size == 0
-    assert normalized_point_times(np.full(5, 0.03)).size == 0  # one time: KISS-ICP would divide by zero
+    assert (
+        normalized_point_times(np.full(5, 0.03)).size == 0
+    )  # one time: KISS-ICP would divide by zero
     assert np.allclose(normalized_point_times(np.array([0.02, 0.07, 0.12])), [0.0, 0.5, 1.0])
 
 
@@ -84,7 +96,9 @@ def test_se3_log_and_deskew_against_matrix_exponential():
     assert np.allclose(se3_log(delta), xi, atol=1e-10)
     points = rng.normal(size=(20, 3)) * 5.0
     s = rng.uniform(0.0, 1.0, 20)
-    expected = np.array([(expm((si - 1.0) * _twist_matrix(xi)) @ np.append(p, 1.0))[:3] for p, si in zip(points, s)])
+    expected = np.array(
+        [(expm((si - 1.0) * _twist_matrix(xi)) @ np.append(p, 1.0))[:3] for p, si in zip(points, s)]
+    )
     assert np.allclose(deskew_to_end(points, s, delta), expected, atol=1e-10)
     assert np.allclose(deskew_to_end(points, np.ones(20), delta), points)
     assert np.allclose(so3_exp(xi[3:]), delta[:3, :3])
@@ -94,7 +108,9 @@ def test_estimator_overrides():
     from datasets.errors import InputError
     from workbench.commands.bag import estimator_overrides
 
-    assert estimator_overrides(["aghili.anchor_source=first-observation"], ["aghili", "ekf-slam"]) == {"aghili": {"anchor_source": "first-observation"}, "ekf-slam": {}}
+    assert estimator_overrides(
+        ["aghili.anchor_source=first-observation"], ["aghili", "ekf-slam"]
+    ) == {"aghili": {"anchor_source": "first-observation"}, "ekf-slam": {}}
     with pytest.raises(InputError, match="not among the estimators run"):
         estimator_overrides(["smoother-batch.x=1"], ["aghili"])
     with pytest.raises(InputError, match="ESTIMATOR.key=value"):

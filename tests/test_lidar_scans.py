@@ -35,7 +35,9 @@ def _write_pcd(path, points, times, binary: bool) -> None:
     if binary:
         path.write_bytes(header.encode() + table.tobytes())
     else:
-        path.write_text(header + "\n".join(" ".join(f"{v:.6f}" for v in row) for row in table) + "\n")
+        path.write_text(
+            header + "\n".join(" ".join(f"{v:.6f}" for v in row) for row in table) + "\n"
+        )
 
 
 def _write_ply(path, points, binary: bool) -> None:
@@ -44,13 +46,17 @@ def _write_ply(path, points, binary: bool) -> None:
     if binary:
         path.write_bytes(header.encode() + table.tobytes())
     else:
-        path.write_text(header + "\n".join(" ".join(f"{v:.6f}" for v in row) for row in table) + "\n")
+        path.write_text(
+            header + "\n".join(" ".join(f"{v:.6f}" for v in row) for row in table) + "\n"
+        )
 
 
 def test_formats_agree(tmp_path):
-    (points, times), = _sweeps(1)
+    ((points, times),) = _sweeps(1)
     stored = points.astype(np.float32).astype(np.float64)
-    (tmp_path / "a.bin").write_bytes(np.column_stack([points, np.ones(len(points))]).astype("<f4").tobytes())
+    (tmp_path / "a.bin").write_bytes(
+        np.column_stack([points, np.ones(len(points))]).astype("<f4").tobytes()
+    )
     _write_pcd(tmp_path / "b.pcd", points, times, binary=True)
     _write_pcd(tmp_path / "c.pcd", points, times, binary=False)
     _write_ply(tmp_path / "d.ply", points, binary=True)
@@ -84,12 +90,18 @@ def test_scan_folder_sequence(tmp_path):
 
 def test_bad_scans(tmp_path):
     (tmp_path / "000.bin").write_bytes(b"\0" * 20)
-    with pytest.raises(InputError, match=r"000\.bin: 20 bytes is not a whole number of KITTI points"):
+    with pytest.raises(
+        InputError, match=r"000\.bin: 20 bytes is not a whole number of KITTI points"
+    ):
         read_scan(tmp_path / "000.bin", 0.0)
-    (tmp_path / "001.pcd").write_text("VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary_compressed\n")
+    (tmp_path / "001.pcd").write_text(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary_compressed\n"
+    )
     with pytest.raises(InputError, match="binary_compressed is not supported"):
         read_scan(tmp_path / "001.pcd", 0.0)
-    (tmp_path / "002.pcd").write_text("VERSION 0.7\nFIELDS a b\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2\n")
+    (tmp_path / "002.pcd").write_text(
+        "VERSION 0.7\nFIELDS a b\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2\n"
+    )
     with pytest.raises(InputError, match=r"002\.pcd: no x/y/z field \(fields: a, b\)"):
         read_scan(tmp_path / "002.pcd", 0.0)
     empty = tmp_path / "empty"

@@ -26,19 +26,31 @@ from workbench.metrics.ate import ate_report
 def _trajectory(t: np.ndarray, rng: np.random.Generator, scale: float = 1.0) -> Trajectory:
     rotvecs = np.cumsum(rng.normal(0, 0.05, (len(t), 3)), axis=0)
     positions = scale * np.cumsum(rng.normal(0, 0.3, (len(t), 3)), axis=0)
-    return Trajectory(t=t, positions=positions, rotations=quat_wxyz_from_rotation(Rotation.from_rotvec(rotvecs)))
+    return Trajectory(
+        t=t, positions=positions, rotations=quat_wxyz_from_rotation(Rotation.from_rotvec(rotvecs))
+    )
 
 
-def _distorted(truth: Trajectory, t: np.ndarray, rng: np.random.Generator, scale: float = 1.0) -> Trajectory:
+def _distorted(
+    truth: Trajectory, t: np.ndarray, rng: np.random.Generator, scale: float = 1.0
+) -> Trajectory:
     """Truth resampled at ``t`` (nearest), moved by a random rigid transform, scaled, noisy."""
     nearest = np.clip(np.searchsorted(truth.t, t), 0, len(truth) - 1)
     rotation = Rotation.from_rotvec(rng.normal(0, 0.7, 3))
-    positions = scale * rotation.apply(truth.positions[nearest]) + rng.normal(0, 5, 3) + rng.normal(0, 0.2, (len(t), 3))
-    rotations = quat_wxyz_from_rotation(rotation * Rotation.from_quat(truth.rotations[nearest][:, [1, 2, 3, 0]]))
+    positions = (
+        scale * rotation.apply(truth.positions[nearest])
+        + rng.normal(0, 5, 3)
+        + rng.normal(0, 0.2, (len(t), 3))
+    )
+    rotations = quat_wxyz_from_rotation(
+        rotation * Rotation.from_quat(truth.rotations[nearest][:, [1, 2, 3, 0]])
+    )
     return Trajectory(t=t, positions=positions, rotations=rotations)
 
 
-def _evo_rmse(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, align: str, max_diff: float = 0.01) -> float:
+def _evo_rmse(
+    reference: PoseTrajectory3D, estimate: PoseTrajectory3D, align: str, max_diff: float = 0.01
+) -> float:
     reference, estimate = sync.associate_trajectories(reference, estimate, max_diff=max_diff)
     estimate = copy.deepcopy(estimate)
     if align in ("se3", "sim3"):
@@ -50,7 +62,10 @@ def _evo_rmse(reference: PoseTrajectory3D, estimate: PoseTrajectory3D, align: st
 
 PAIRS = {
     "same_stamps": (np.arange(0.0, 20.0, 0.1), np.arange(0.0, 20.0, 0.1)),
-    "jittered": (np.arange(0.0, 20.0, 0.1), np.sort(np.arange(0.0, 20.0, 0.1) + np.random.default_rng(3).uniform(-0.015, 0.015, 200))),
+    "jittered": (
+        np.arange(0.0, 20.0, 0.1),
+        np.sort(np.arange(0.0, 20.0, 0.1) + np.random.default_rng(3).uniform(-0.015, 0.015, 200)),
+    ),
     "different_rates": (np.arange(0.0, 20.0, 0.05), np.arange(0.004, 20.0, 0.3)),
     "partial_overlap": (np.arange(0.0, 20.0, 0.1), np.arange(8.0, 30.0, 0.1) + 0.006),
     "estimate_denser": (np.arange(0.0, 20.0, 0.2), np.arange(0.0, 20.0, 0.05) + 0.002),
@@ -64,11 +79,16 @@ def test_ate_report_equals_evo_on_tum_files(tmp_path: Path, name: str, align: st
     t_ref, t_est = PAIRS[name]
     truth = _trajectory(t_ref, rng)
     estimate = _distorted(truth, t_est, rng, scale=1.3 if align == "sim3" else 1.0)
-    ref_path, est_path = write_tum(tmp_path / "ref.tum", truth), write_tum(tmp_path / "est.tum", estimate)
+    ref_path, est_path = (
+        write_tum(tmp_path / "ref.tum", truth),
+        write_tum(tmp_path / "est.tum", estimate),
+    )
 
     report = ate_report(read_tum(ref_path), read_tum(est_path), align=align)
     expected = _evo_rmse(
-        file_interface.read_tum_trajectory_file(str(ref_path)), file_interface.read_tum_trajectory_file(str(est_path)), align
+        file_interface.read_tum_trajectory_file(str(ref_path)),
+        file_interface.read_tum_trajectory_file(str(est_path)),
+        align,
     )
     assert report["rmse_m"] == pytest.approx(expected, rel=1e-6)
     assert report["pairs"] >= 1
@@ -82,7 +102,9 @@ def test_ate_report_equals_evo_on_tum_files(tmp_path: Path, name: str, align: st
     align=st.sampled_from(["se3", "sim3", "none"]),
     jitter=st.sampled_from([0.0, 0.004, 0.02]),
 )
-def test_ate_equals_evo_on_random_trajectories(seed: int, count: int, align: str, jitter: float) -> None:
+def test_ate_equals_evo_on_random_trajectories(
+    seed: int, count: int, align: str, jitter: float
+) -> None:
     rng = np.random.default_rng(seed)
     truth = _trajectory(np.arange(count) * 0.1, rng)
     t_est = np.sort(truth.t + rng.uniform(-jitter, jitter, count))
@@ -95,7 +117,9 @@ def test_ate_equals_evo_on_random_trajectories(seed: int, count: int, align: str
         with pytest.raises(InputError):
             ate_report(truth, estimate, align=align)
         return
-    assert ate_report(truth, estimate, align=align)["rmse_m"] == pytest.approx(expected, rel=1e-6, abs=1e-12)
+    assert ate_report(truth, estimate, align=align)["rmse_m"] == pytest.approx(
+        expected, rel=1e-6, abs=1e-12
+    )
 
 
 def test_rigidly_moved_copy_has_zero_se3_error_and_known_raw_error() -> None:
@@ -110,7 +134,9 @@ def test_rigidly_moved_copy_has_zero_se3_error_and_known_raw_error() -> None:
     )
     report = ate_report(truth, moved, align="se3")
     assert report["rmse_m"] < 1e-9
-    np.testing.assert_allclose(np.array(report["alignment"]["rotation"]), rotation.inv().as_matrix(), atol=1e-9)
+    np.testing.assert_allclose(
+        np.array(report["alignment"]["rotation"]), rotation.inv().as_matrix(), atol=1e-9
+    )
     raw = ate_report(truth, moved, align="none")
     assert raw["rmse_m"] > 1.0
     assert raw["alignment"]["kind"] == "none"

@@ -41,7 +41,9 @@ def _diagnostics():
 
 def test_true_ids_are_looked_up_by_scan_time_and_index() -> None:
     diagnostics = _diagnostics()
-    np.testing.assert_array_equal(true_ids_of_records(diagnostics, SCAN_IDS), [5, 6, 5, 6, 7, 6, 7, 5, 8])
+    np.testing.assert_array_equal(
+        true_ids_of_records(diagnostics, SCAN_IDS), [5, 6, 5, 6, 7, 6, 7, 5, 8]
+    )
     shifted = tuple((t + 0.5, ids) for t, ids in SCAN_IDS)
     assert np.all(true_ids_of_records(diagnostics, shifted) == -1)
 
@@ -71,7 +73,9 @@ def test_an_associated_anchor_counts_as_a_positive() -> None:
 
 def test_loop_closure_pairs_are_scored_through_the_mapping() -> None:
     diagnostics = _diagnostics()
-    mapping = majority_mapping(diagnostics.assoc_landmark_id, true_ids_of_records(diagnostics, SCAN_IDS))
+    mapping = majority_mapping(
+        diagnostics.assoc_landmark_id, true_ids_of_records(diagnostics, SCAN_IDS)
+    )
     assert mapping == {100: 5, 101: 6, 102: 7, 103: 7}
     score = score_loop_closures(diagnostics.events, mapping)
     assert (score.events, score.pairs, score.scored, score.correct) == (2, 3, 2, 1)

@@ -6,7 +6,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from datasets.rotations import quat_wxyz_from_rotation
-from workbench.metrics.orientation import orientation_error_rad, planar_orientation_error_rad, quaternion_product_wxyz
+from workbench.metrics.orientation import (
+    orientation_error_rad,
+    planar_orientation_error_rad,
+    quaternion_product_wxyz,
+)
 
 
 def test_equals_the_relative_rotation_angle_and_the_literal_formula() -> None:
@@ -17,7 +21,9 @@ def test_equals_the_relative_rotation_angle_and_the_literal_formula() -> None:
     angles = orientation_error_rad(q_est, q_ref)
     np.testing.assert_allclose(angles, (estimated.inv() * reference).magnitude(), atol=1e-9)
     # The paper's literal 2 asin ||vec(q_hat^* (x) q_ref)||, away from pi where asin is accurate.
-    literal = 2.0 * np.arcsin(np.linalg.norm(quaternion_product_wxyz(q_est * [1, -1, -1, -1], q_ref)[:, 1:], axis=1))
+    literal = 2.0 * np.arcsin(
+        np.linalg.norm(quaternion_product_wxyz(q_est * [1, -1, -1, -1], q_ref)[:, 1:], axis=1)
+    )
     moderate = angles < 3.0
     np.testing.assert_allclose(angles[moderate], literal[moderate], atol=1e-9)
 
@@ -40,4 +46,7 @@ def test_hamilton_product_matches_scipy_composition() -> None:
 
 
 def test_planar_error_wraps() -> None:
-    np.testing.assert_allclose(planar_orientation_error_rad(np.array([3.1, 0.0]), np.array([-3.1, 0.5])), [2 * np.pi - 6.2, 0.5])
+    np.testing.assert_allclose(
+        planar_orientation_error_rad(np.array([3.1, 0.0]), np.array([-3.1, 0.5])),
+        [2 * np.pi - 6.2, 0.5],
+    )

@@ -19,21 +19,34 @@ from datasets.trajectory_io import read_tum, write_tum
 from workbench.metrics.rpe import kitti_segment_errors, pairs_by_distance, rpe_report
 
 
-def _pair(rng: np.random.Generator, t_ref: np.ndarray, t_est: np.ndarray) -> tuple[Trajectory, Trajectory]:
+def _pair(
+    rng: np.random.Generator, t_ref: np.ndarray, t_est: np.ndarray
+) -> tuple[Trajectory, Trajectory]:
     rotvecs = np.cumsum(rng.normal(0, 0.05, (len(t_ref), 3)), axis=0)
     truth = Trajectory(
-        t_ref, np.cumsum(rng.normal(0, 0.3, (len(t_ref), 3)), axis=0), quat_wxyz_from_rotation(Rotation.from_rotvec(rotvecs))
+        t_ref,
+        np.cumsum(rng.normal(0, 0.3, (len(t_ref), 3)), axis=0),
+        quat_wxyz_from_rotation(Rotation.from_rotvec(rotvecs)),
     )
     nearest = np.clip(np.searchsorted(t_ref, t_est), 0, len(t_ref) - 1)
     noise = Rotation.from_rotvec(rng.normal(0, 0.02, (len(t_est), 3)))
     rotations = Rotation.from_quat(truth.rotations[nearest][:, [1, 2, 3, 0]]) * noise
     estimate = Trajectory(
-        t_est, truth.positions[nearest] + rng.normal(0, 0.05, (len(t_est), 3)), quat_wxyz_from_rotation(rotations)
+        t_est,
+        truth.positions[nearest] + rng.normal(0, 0.05, (len(t_est), 3)),
+        quat_wxyz_from_rotation(rotations),
     )
     return truth, estimate
 
 
-def _evo_rpe(ref_path: Path, est_path: Path, relation: evo_metrics.PoseRelation, delta: float, unit: evo_metrics.Unit, align: str) -> float:
+def _evo_rpe(
+    ref_path: Path,
+    est_path: Path,
+    relation: evo_metrics.PoseRelation,
+    delta: float,
+    unit: evo_metrics.Unit,
+    align: str,
+) -> float:
     reference = file_interface.read_tum_trajectory_file(str(ref_path))
     estimate = file_interface.read_tum_trajectory_file(str(est_path))
     reference, estimate = sync.associate_trajectories(reference, estimate)
@@ -47,17 +60,32 @@ def _evo_rpe(ref_path: Path, est_path: Path, relation: evo_metrics.PoseRelation,
 
 @pytest.mark.parametrize(
     ("delta", "unit", "align", "jitter"),
-    [(1, "frames", "none", 0.0), (1, "frames", "se3", 0.006), (5, "frames", "sim3", 0.0), (2.0, "m", "none", 0.006), (3.0, "m", "sim3", 0.0)],
+    [
+        (1, "frames", "none", 0.0),
+        (1, "frames", "se3", 0.006),
+        (5, "frames", "sim3", 0.0),
+        (2.0, "m", "none", 0.006),
+        (3.0, "m", "sim3", 0.0),
+    ],
 )
-def test_rpe_report_equals_evo(tmp_path: Path, delta: float, unit: str, align: str, jitter: float) -> None:
+def test_rpe_report_equals_evo(
+    tmp_path: Path, delta: float, unit: str, align: str, jitter: float
+) -> None:
     rng = np.random.default_rng(21)
     t_ref = np.arange(0.0, 20.0, 0.1)
     truth, estimate = _pair(rng, t_ref, np.sort(t_ref + rng.uniform(-jitter, jitter, len(t_ref))))
-    ref_path, est_path = write_tum(tmp_path / "ref.tum", truth), write_tum(tmp_path / "est.tum", estimate)
+    ref_path, est_path = (
+        write_tum(tmp_path / "ref.tum", truth),
+        write_tum(tmp_path / "est.tum", estimate),
+    )
     report = rpe_report(read_tum(ref_path), read_tum(est_path), delta=delta, unit=unit, align=align)
     evo_unit = evo_metrics.Unit.frames if unit == "frames" else evo_metrics.Unit.meters
-    trans = _evo_rpe(ref_path, est_path, evo_metrics.PoseRelation.translation_part, delta, evo_unit, align)
-    rot = _evo_rpe(ref_path, est_path, evo_metrics.PoseRelation.rotation_angle_deg, delta, evo_unit, align)
+    trans = _evo_rpe(
+        ref_path, est_path, evo_metrics.PoseRelation.translation_part, delta, evo_unit, align
+    )
+    rot = _evo_rpe(
+        ref_path, est_path, evo_metrics.PoseRelation.rotation_angle_deg, delta, evo_unit, align
+    )
     assert report["trans_rmse_m"] == pytest.approx(trans, rel=1e-6)
     assert report["rot_rmse_deg"] == pytest.approx(rot, rel=1e-6)
     assert report["pairs"] > 3
@@ -83,7 +111,11 @@ def test_pairs_by_distance_restarts_the_count_at_every_pair() -> None:
 
 def _straight_line(length_m: float, step_m: float) -> Trajectory:
     x = np.arange(0.0, length_m + step_m, step_m)
-    return Trajectory(np.arange(len(x)) * 0.1, np.column_stack([x, np.zeros((len(x), 2))]), np.tile([1.0, 0, 0, 0], (len(x), 1)))
+    return Trajectory(
+        np.arange(len(x)) * 0.1,
+        np.column_stack([x, np.zeros((len(x), 2))]),
+        np.tile([1.0, 0, 0, 0], (len(x), 1)),
+    )
 
 
 def test_kitti_segments_of_a_scaled_path_give_the_scale_error_in_percent() -> None:
@@ -101,14 +133,22 @@ def test_kitti_segments_measure_heading_drift_per_100m() -> None:
     truth = _straight_line(900.0, 1.0)
     # Heading drifts 0.5 deg per 100 m of travel, positions exact.
     yaw = np.deg2rad(0.005) * truth.positions[:, 0]
-    drifted = Trajectory(truth.t, truth.positions, quat_wxyz_from_rotation(Rotation.from_rotvec(np.outer(yaw, [0, 0, 1]))))
+    drifted = Trajectory(
+        truth.t,
+        truth.positions,
+        quat_wxyz_from_rotation(Rotation.from_rotvec(np.outer(yaw, [0, 0, 1]))),
+    )
     result = kitti_segment_errors(truth, drifted)
     assert result["rotation_deg_per_100m"] == pytest.approx(0.5, rel=0.02)
 
 
 def test_kitti_segments_are_undefined_on_short_paths() -> None:
     truth = _straight_line(50.0, 1.0)
-    assert kitti_segment_errors(truth, truth) == {"translation_percent": None, "rotation_deg_per_100m": None, "segments": 0}
+    assert kitti_segment_errors(truth, truth) == {
+        "translation_percent": None,
+        "rotation_deg_per_100m": None,
+        "segments": 0,
+    }
 
 
 def _devkit_port(reference: Trajectory, estimate: Trajectory) -> tuple[float, float]:
@@ -126,7 +166,9 @@ def _devkit_port(reference: Trajectory, estimate: Trajectory) -> tuple[float, fl
             delta_gt = np.linalg.inv(gt[first]) @ gt[last]
             delta_result = np.linalg.inv(result[first]) @ result[last]
             error = np.linalg.inv(delta_result) @ delta_gt
-            r_errs.append(np.arccos(max(min(0.5 * (np.trace(error[:3, :3]) - 1.0), 1.0), -1.0)) / length)
+            r_errs.append(
+                np.arccos(max(min(0.5 * (np.trace(error[:3, :3]) - 1.0), 1.0), -1.0)) / length
+            )
             t_errs.append(np.linalg.norm(error[:3, 3]) / length)
     return 100.0 * float(np.mean(t_errs)), 100.0 * float(np.rad2deg(np.mean(r_errs)))
 
@@ -138,7 +180,9 @@ def test_kitti_segments_equal_a_literal_devkit_port() -> None:
     truth = Trajectory(
         np.arange(count) * 0.1,
         np.cumsum(steps, axis=0),
-        quat_wxyz_from_rotation(Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.01, (count, 3)), axis=0))),
+        quat_wxyz_from_rotation(
+            Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.01, (count, 3)), axis=0))
+        ),
     )
     drift = Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.002, (count, 3)), axis=0))
     estimate = Trajectory(

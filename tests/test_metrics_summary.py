@@ -31,24 +31,38 @@ T = np.arange(STEPS) * 0.1
 def _truth_3d() -> GroundTruth:
     angle = 0.2 * T
     positions = np.column_stack([10 * np.cos(angle), 10 * np.sin(angle), 0.1 * T])
-    rotations = quat_wxyz_from_rotation(Rotation.from_rotvec(np.outer(angle + np.pi / 2, [0, 0, 1])))
+    rotations = quat_wxyz_from_rotation(
+        Rotation.from_rotvec(np.outer(angle + np.pi / 2, [0, 0, 1]))
+    )
     velocity = np.column_stack([-2 * np.sin(angle), 2 * np.cos(angle), np.full(STEPS, 0.1)])
     blocks = {
         BlockName.VELOCITY: StateBlock(T, velocity, frame=Frame.WORLD),
         BlockName.GYRO_BIAS: StateBlock(T, np.tile([0.01, -0.02, 0.005], (STEPS, 1))),
     }
-    landmarks = LandmarkMap(ids=np.arange(5), positions=np.array([[15.0, 0, 0], [0, 15, 1], [-15, 0, 2], [0, -15, 0], [5, 5, 5]]))
+    landmarks = LandmarkMap(
+        ids=np.arange(5),
+        positions=np.array([[15.0, 0, 0], [0, 15, 1], [-15, 0, 2], [0, -15, 0], [5, 5, 5]]),
+    )
     scan_ids = tuple((float(t), np.arange(5)) for t in T[::10])
     return GroundTruth(
         history=StateHistory(pose=Trajectory(T, positions, rotations), blocks=blocks),
         landmarks=landmarks,
         scan_ids=scan_ids,
-        held_out_positions=(T[5::20] + 0.05, positions[5::20] + 0.5 * (positions[6::20] - positions[5::20])),
+        held_out_positions=(
+            T[5::20] + 0.05,
+            positions[5::20] + 0.5 * (positions[6::20] - positions[5::20]),
+        ),
     )
 
 
 def _sequence(truth: GroundTruth, dimension: int = 3) -> Sequence:
-    return Sequence(name="hand-built", dimension=dimension, sensors=frozenset(), stream=lambda: iter(()), ground_truth=truth)
+    return Sequence(
+        name="hand-built",
+        dimension=dimension,
+        sensors=frozenset(),
+        stream=lambda: iter(()),
+        ground_truth=truth,
+    )
 
 
 def _estimate_3d(truth: GroundTruth):
@@ -58,11 +72,21 @@ def _estimate_3d(truth: GroundTruth):
     for k in range(STEPS):
         rotation = pose.rotations[k]
         if k == STEPS - 1:
-            rotation = quat_wxyz_from_rotation(Rotation.from_quat(rotation[[1, 2, 3, 0]]) * Rotation.from_rotvec([0, 0, np.deg2rad(2.0)]))
+            rotation = quat_wxyz_from_rotation(
+                Rotation.from_quat(rotation[[1, 2, 3, 0]])
+                * Rotation.from_rotvec([0, 0, np.deg2rad(2.0)])
+            )
         recorder.pose(T[k], pose.positions[k] + [0.1, 0.0, 0.0], rotation, 0.01 * np.eye(6))
         velocity = truth.history.blocks[BlockName.VELOCITY].values[k]
-        recorder.block(BlockName.VELOCITY, T[k], velocity + [0.1, 0, 0], 0.01 * np.eye(3), Frame.WORLD)
-        recorder.block(BlockName.GYRO_BIAS, T[k], truth.history.blocks[BlockName.GYRO_BIAS].values[k], 1e-4 * np.eye(3))
+        recorder.block(
+            BlockName.VELOCITY, T[k], velocity + [0.1, 0, 0], 0.01 * np.eye(3), Frame.WORLD
+        )
+        recorder.block(
+            BlockName.GYRO_BIAS,
+            T[k],
+            truth.history.blocks[BlockName.GYRO_BIAS].values[k],
+            1e-4 * np.eye(3),
+        )
     for t, ids in truth.scan_ids:
         for index, true_id in enumerate(ids):
             recorder.association(t, index, 100 + int(true_id), t == 0.0)
@@ -70,14 +94,18 @@ def _estimate_3d(truth: GroundTruth):
         recorder.nis(1.0, value, 2)
     recorder.event(5.0, "loop_closure", pairs=[[100, 101]])
     final_map = LandmarkMap(
-        ids=100 + np.arange(5), positions=truth.landmarks.positions + [0.2, 0.0, 0.0], covariances=np.tile(0.04 * np.eye(3), (5, 1, 1))
+        ids=100 + np.arange(5),
+        positions=truth.landmarks.positions + [0.2, 0.0, 0.0],
+        covariances=np.tile(0.04 * np.eye(3), (5, 1, 1)),
     )
     return recorder.build(landmarks=final_map)
 
 
 def test_known_errors_give_known_metrics() -> None:
     truth = _truth_3d()
-    estimate = replace(_estimate_3d(truth), timing=StepTiming(t=T, seconds=np.linspace(0.001, 0.003, STEPS)))
+    estimate = replace(
+        _estimate_3d(truth), timing=StepTiming(t=T, seconds=np.linspace(0.001, 0.003, STEPS))
+    )
     metrics = compute_metrics(estimate, _sequence(truth))
     assert set(REQUIRED_KEYS) <= set(metrics)
     json.dumps(metrics, allow_nan=False)
@@ -117,8 +145,15 @@ def test_known_errors_give_known_metrics() -> None:
 def test_smoothed_history_fills_the_smoothed_keys() -> None:
     truth = _truth_3d()
     causal = _estimate_3d(truth)
-    smoothed_pose = Trajectory(T, truth.pose.positions + [0.0, 0.3, 0.0], truth.pose.rotations, np.tile(0.09 * np.eye(6), (STEPS, 1, 1)))
-    metrics = compute_metrics(replace(causal, smoothed=StateHistory(pose=smoothed_pose)), _sequence(truth))
+    smoothed_pose = Trajectory(
+        T,
+        truth.pose.positions + [0.0, 0.3, 0.0],
+        truth.pose.rotations,
+        np.tile(0.09 * np.eye(6), (STEPS, 1, 1)),
+    )
+    metrics = compute_metrics(
+        replace(causal, smoothed=StateHistory(pose=smoothed_pose)), _sequence(truth)
+    )
     assert metrics["ate_rmse_raw_smoothed_m"] == pytest.approx(0.3, rel=1e-9)
     assert metrics["nees_pose_mean_smoothed"] == pytest.approx(1.0, rel=1e-9)
     assert metrics["ate_rmse_raw_m"] == pytest.approx(0.1, rel=1e-9)
@@ -130,11 +165,19 @@ def test_robocentric_estimate_without_a_world_pose_and_without_truth() -> None:
     recorder = EstimateRecorder(dimension=3)
     body_velocity = np.tile([2.0, 0.0, 0.1], (STEPS, 1))
     for k in range(STEPS):
-        recorder.block(BlockName.VELOCITY, T[k], body_velocity[k] + [0, 0.2, 0], 0.04 * np.eye(3), Frame.BODY)
+        recorder.block(
+            BlockName.VELOCITY, T[k], body_velocity[k] + [0, 0.2, 0], 0.04 * np.eye(3), Frame.BODY
+        )
     estimate = recorder.build()
     with_body_truth = replace(truth, body_velocity=StateBlock(T, body_velocity))
     metrics = compute_metrics(estimate, _sequence(with_body_truth))
-    for key in ("ate_rmse_m", "rpe_trans_rmse_m", "final_orientation_error_deg", "nees_pose_mean", "nees_pose_inside_fraction"):
+    for key in (
+        "ate_rmse_m",
+        "rpe_trans_rmse_m",
+        "final_orientation_error_deg",
+        "nees_pose_mean",
+        "nees_pose_inside_fraction",
+    ):
         assert metrics[key] is None
     assert metrics["nees_velocity_mean"] == pytest.approx(1.0, rel=1e-9)
     assert metrics["steps"] == STEPS
@@ -150,7 +193,12 @@ def test_planar_estimate_uses_se2_alignment() -> None:
     rotation = np.array([[np.cos(0.5), -np.sin(0.5)], [np.sin(0.5), np.cos(0.5)]])
     recorder = EstimateRecorder(dimension=2)
     for k in range(STEPS):
-        recorder.pose(T[k], rotation @ positions[k] + [1.0, 2.0], angle[k] + np.pi / 2 + 0.5, np.diag([0.01, 0.01, 0.001]))
+        recorder.pose(
+            T[k],
+            rotation @ positions[k] + [1.0, 2.0],
+            angle[k] + np.pi / 2 + 0.5,
+            np.diag([0.01, 0.01, 0.001]),
+        )
     metrics = compute_metrics(recorder.build(), _sequence(truth, dimension=2))
     assert metrics["ate_rmse_m"] < 1e-9
     assert metrics["ate_rmse_raw_m"] > 1.0
@@ -173,7 +221,12 @@ def test_simulated_scenario_with_a_consistent_oracle_estimate() -> None:
         # truth = estimate (+) xi  <=>  estimate = truth (+) (-xi) to first order; build it exactly:
         est_rotation = rotations[k] @ so3_exp(-xi[k, :3])
         est_position = pose.positions[k] - est_rotation @ xi[k, 3:]
-        recorder.pose(pose.t[k], est_position, quat_wxyz_from_rotation(Rotation.from_matrix(est_rotation)), np.diag(sigmas**2))
+        recorder.pose(
+            pose.t[k],
+            est_position,
+            quat_wxyz_from_rotation(Rotation.from_matrix(est_rotation)),
+            np.diag(sigmas**2),
+        )
     metrics = compute_metrics(recorder.build(), sequence)
     json.dumps(metrics, allow_nan=False)
     assert metrics["nees_pose_mean"] == pytest.approx(6.0, rel=0.1)
@@ -183,7 +236,11 @@ def test_simulated_scenario_with_a_consistent_oracle_estimate() -> None:
 
 def test_static_truth_still_gets_an_aligned_ate() -> None:
     # evo refuses to align a static trajectory (degenerate); metrics.json takes a minimiser.
-    truth = GroundTruth(history=StateHistory(pose=Trajectory(T, np.zeros((STEPS, 3)), np.tile([1.0, 0, 0, 0], (STEPS, 1)))))
+    truth = GroundTruth(
+        history=StateHistory(
+            pose=Trajectory(T, np.zeros((STEPS, 3)), np.tile([1.0, 0, 0, 0], (STEPS, 1)))
+        )
+    )
     recorder = EstimateRecorder(dimension=3)
     for k in range(STEPS):
         recorder.pose(T[k], [0.01 * k, 0.0, 0.0], [1.0, 0, 0, 0], None)

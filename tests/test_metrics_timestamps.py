@@ -17,12 +17,18 @@ from workbench.metrics.timestamps import associate, matching_time_indices, traje
 
 
 def _trajectory(t: np.ndarray, rng: np.random.Generator) -> Trajectory:
-    rotations = quat_wxyz_from_rotation(Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.1, (len(t), 3)), axis=0)))
-    return Trajectory(t=t, positions=np.cumsum(rng.normal(0, 1, (len(t), 3)), axis=0), rotations=rotations)
+    rotations = quat_wxyz_from_rotation(
+        Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.1, (len(t), 3)), axis=0))
+    )
+    return Trajectory(
+        t=t, positions=np.cumsum(rng.normal(0, 1, (len(t), 3)), axis=0), rotations=rotations
+    )
 
 
 def _evo(trajectory: Trajectory) -> PoseTrajectory3D:
-    return PoseTrajectory3D(trajectory.positions.copy(), trajectory.rotations.copy(), trajectory.t.copy())
+    return PoseTrajectory3D(
+        trajectory.positions.copy(), trajectory.rotations.copy(), trajectory.t.copy()
+    )
 
 
 stamps = st.lists(st.floats(0.0, 2.0, allow_nan=False), min_size=1, max_size=40)
@@ -30,7 +36,9 @@ stamps = st.lists(st.floats(0.0, 2.0, allow_nan=False), min_size=1, max_size=40)
 
 @settings(max_examples=150, deadline=None)
 @given(stamps, stamps, st.sampled_from([0.0, 0.005, 0.01, 0.05]), st.booleans())
-def test_matching_equals_evo(first: list[float], second: list[float], max_diff: float, sort_second: bool) -> None:
+def test_matching_equals_evo(
+    first: list[float], second: list[float], max_diff: float, sort_second: bool
+) -> None:
     stamps_1 = np.round(np.array(first), 2)  # rounding creates exact ties and duplicates
     stamps_2 = np.round(np.array(second), 3)
     if sort_second:
@@ -93,11 +101,15 @@ def test_interpolation_matches_scipy_slerp_and_linear() -> None:
     angle = (expected.inv() * rotation_from_quat_wxyz(found.rotations)).magnitude()
     assert np.max(angle) < 1e-9
     for axis in range(3):
-        np.testing.assert_allclose(found.positions[:, axis], np.interp(query[valid], truth.t, truth.positions[:, axis]))
+        np.testing.assert_allclose(
+            found.positions[:, axis], np.interp(query[valid], truth.t, truth.positions[:, axis])
+        )
 
 
 def test_planar_headings_interpolate_along_the_short_arc() -> None:
-    truth = Trajectory(t=np.array([0.0, 1.0]), positions=np.zeros((2, 2)), rotations=np.array([3.0, -3.0]))
+    truth = Trajectory(
+        t=np.array([0.0, 1.0]), positions=np.zeros((2, 2)), rotations=np.array([3.0, -3.0])
+    )
     found, valid = trajectory_at(truth, np.array([0.5]))
     assert valid.all()
     # From 3.0 to -3.0 rad the short way crosses pi (0.283 rad of travel), not zero.
@@ -105,6 +117,8 @@ def test_planar_headings_interpolate_along_the_short_arc() -> None:
 
 
 def test_vectors_at_interpolates_linearly() -> None:
-    values, valid = vectors_at(np.array([0.0, 1.0, 3.0]), np.array([[0.0], [2.0], [6.0]]), np.array([0.5, 2.0, 4.0]))
+    values, valid = vectors_at(
+        np.array([0.0, 1.0, 3.0]), np.array([[0.0], [2.0], [6.0]]), np.array([0.5, 2.0, 4.0])
+    )
     np.testing.assert_array_equal(valid, [True, True, False])
     np.testing.assert_allclose(values[:, 0], [1.0, 4.0])

@@ -13,16 +13,25 @@ from workbench.runner import check_compatible, resolve_config
 
 
 def sequence_with(sensors, dimension=3):
-    return Sequence(name="fake", dimension=dimension, sensors=frozenset(sensors), stream=lambda: iter(()))
+    return Sequence(
+        name="fake", dimension=dimension, sensors=frozenset(sensors), stream=lambda: iter(())
+    )
 
 
 def test_missing_sensor_is_named():
-    with pytest.raises(InputError, match="needs sensor\\(s\\) imu \\| odometry \\| gyro, which dataset 'fake' does not provide \\(it provides: landmarks\\)"):
+    with pytest.raises(
+        InputError,
+        match="needs sensor\\(s\\) imu \\| odometry \\| gyro, which dataset 'fake' does not provide \\(it provides: landmarks\\)",
+    ):
         check_compatible("dead-reckoning", DeadReckoning, sequence_with({Sensor.LANDMARKS}))
 
 
 def test_any_alternative_suffices():
-    check_compatible("dead-reckoning", DeadReckoning, sequence_with({Sensor.ODOMETRY, Sensor.LANDMARKS}, dimension=2))
+    check_compatible(
+        "dead-reckoning",
+        DeadReckoning,
+        sequence_with({Sensor.ODOMETRY, Sensor.LANDMARKS}, dimension=2),
+    )
 
 
 def test_config_file_then_set_overrides(tmp_path):

@@ -39,7 +39,9 @@ def _vehicle_errors(estimate, sequence) -> tuple[np.ndarray, np.ndarray, np.ndar
     covs = extras["vehicle_covariance"].reshape(len(t), 3, 3)
     truth = sequence.ground_truth
     index = np.searchsorted(truth.body_velocity.t, t - 1e-9)
-    true_states = np.hstack([truth.body_velocity.values[index], truth.history.block("gyro_bias").values[index]])
+    true_states = np.hstack(
+        [truth.body_velocity.values[index], truth.history.block("gyro_bias").values[index]]
+    )
     return t, true_states - states, covs
 
 
@@ -47,10 +49,14 @@ def _nees(errors: np.ndarray, covs: np.ndarray) -> np.ndarray:
     return np.einsum("ni,ni->n", errors, np.linalg.solve(covs, errors[:, :, None])[:, :, 0])
 
 
-def _monte_carlo(data: dict[str, str], config: dict) -> tuple[np.ndarray, list, list, list, list, object]:
+def _monte_carlo(
+    data: dict[str, str], config: dict
+) -> tuple[np.ndarray, list, list, list, list, object]:
     vehicle, velocity, bias, nis = [], [], [], []
     for seed in SEEDS:
-        sequence = load_scenario("guerreiro-loop", seed, {"duration_s": DURATION_S, "ids": "true", **data})
+        sequence = load_scenario(
+            "guerreiro-loop", seed, {"duration_s": DURATION_S, "ids": "true", **data}
+        )
         estimator = SensorBasedSlam(SensorBasedConfig(**config), sequence)
         for measurement in sequence.measurements():
             estimator.process(measurement)
@@ -83,7 +89,9 @@ def test_deterministic_speed_changes_show_up_as_velocity_nees_following_the_acce
     velocity_avg = averaged_nees(np.stack(velocity), dof=2)
     assert averaged_nees(np.stack(bias), dof=1).inside_fraction >= 0.8
     truth = sequence.ground_truth.body_velocity
-    acceleration = np.abs(np.gradient(truth.values[:, 0], truth.t))[np.searchsorted(truth.t, t - 1e-9)]
+    acceleration = np.abs(np.gradient(truth.values[:, 0], truth.t))[
+        np.searchsorted(truth.t, t - 1e-9)
+    ]
     settled = t > 2.0
     correlation = np.corrcoef(acceleration[settled], velocity_avg.mean[settled])[0, 1]
     assert correlation > 0.5

@@ -6,13 +6,23 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from filters.sensor_based.dynamics import ProcessNoise, bias_coupling, process_covariance, propagate, skew_rate
+from filters.sensor_based.dynamics import (
+    ProcessNoise,
+    bias_coupling,
+    process_covariance,
+    propagate,
+    skew_rate,
+)
 from filters.sensor_based.update import kalman_update
 
-NOISE = ProcessNoise(velocity_m_s=0.1, gyro_bias_rad_s=1e-4, landmark_m=0.05, direction=0.01, gyro_noise_density=2e-3)
+NOISE = ProcessNoise(
+    velocity_m_s=0.1, gyro_bias_rad_s=1e-4, landmark_m=0.05, direction=0.01, gyro_noise_density=2e-3
+)
 
 
-def _random_state(rng: np.random.Generator, d: int, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _random_state(
+    rng: np.random.Generator, d: int, count: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     r = 1 if d == 2 else 3
     n = d + r + count * d
     x = rng.normal(size=n)
@@ -23,7 +33,9 @@ def _random_state(rng: np.random.Generator, d: int, count: int) -> tuple[np.ndar
     return x, cov, is_position
 
 
-def _continuous_derivative(x: np.ndarray, rate: np.ndarray, is_position: np.ndarray, d: int) -> np.ndarray:
+def _continuous_derivative(
+    x: np.ndarray, rate: np.ndarray, is_position: np.ndarray, d: int
+) -> np.ndarray:
     """The nonlinear model eq. (1) written independently: f_dot = -S(rate - b) f - [pos] v."""
     r = 1 if d == 2 else 3
     v, b = x[:d], x[d : d + r]
@@ -35,7 +47,9 @@ def _continuous_derivative(x: np.ndarray, rate: np.ndarray, is_position: np.ndar
             rotated = -omega[0] * np.array([-f[1], f[0]])
         else:
             rotated = -np.cross(omega, f)
-        out[d + r + index * d : d + r + index * d + d] = rotated - (v if is_position[index] else 0.0)
+        out[d + r + index * d : d + r + index * d + d] = rotated - (
+            v if is_position[index] else 0.0
+        )
     return out
 
 
@@ -50,7 +64,9 @@ def test_bias_coupling_is_the_derivative_of_s_of_b_times_q(d: int) -> None:
 
 
 @pytest.mark.parametrize("d", [2, 3])
-def test_non_visible_prediction_matches_euler_of_the_nonlinear_model_and_its_jacobian(d: int) -> None:
+def test_non_visible_prediction_matches_euler_of_the_nonlinear_model_and_its_jacobian(
+    d: int,
+) -> None:
     rng = np.random.default_rng(2)
     x, cov, is_position = _random_state(rng, d, 4)
     rate = rng.normal(size=1 if d == 2 else 3)
@@ -72,7 +88,9 @@ def test_non_visible_prediction_matches_euler_of_the_nonlinear_model_and_its_jac
     assert np.allclose(cov_next, expected, atol=1e-8)
 
 
-def _dense_ltv_matrix(n: int, measured: np.ndarray, is_position: np.ndarray, rate: np.ndarray, d: int) -> np.ndarray:
+def _dense_ltv_matrix(
+    n: int, measured: np.ndarray, is_position: np.ndarray, rate: np.ndarray, d: int
+) -> np.ndarray:
     """The dense A(t, y) of eqs. (3)-(4) written out row by row (visible features only)."""
     r = 1 if d == 2 else 3
     a = np.zeros((n, n))
@@ -88,7 +106,9 @@ def _dense_ltv_matrix(n: int, measured: np.ndarray, is_position: np.ndarray, rat
 
 @pytest.mark.parametrize("d", [2, 3])
 @pytest.mark.parametrize("discretization", ["euler", "exact"])
-def test_visible_prediction_is_the_ltv_model_with_measured_positions(d: int, discretization: str) -> None:
+def test_visible_prediction_is_the_ltv_model_with_measured_positions(
+    d: int, discretization: str
+) -> None:
     """Euler: F = I + Ts A (eq. (10)); exact: F = expm(A Ts), with the dense A(t, y)."""
     rng = np.random.default_rng(3)
     x, cov, is_position = _random_state(rng, d, 3)
@@ -96,7 +116,9 @@ def test_visible_prediction_is_the_ltv_model_with_measured_positions(d: int, dis
     measured = rng.normal(size=(3, d))
     rate = rng.normal(size=r)
     dt = 0.1 if discretization == "euler" else 0.3
-    x_next, cov_next = propagate(x, cov, is_position, measured, np.ones(3, dtype=bool), rate, dt, NOISE, d, discretization)
+    x_next, cov_next = propagate(
+        x, cov, is_position, measured, np.ones(3, dtype=bool), rate, dt, NOISE, d, discretization
+    )
     a = _dense_ltv_matrix(x.size, measured, is_position, rate, d)
     f = np.eye(x.size) + dt * a if discretization == "euler" else expm(a * dt)
     np.testing.assert_allclose(x_next, f @ x, atol=1e-12)
@@ -117,10 +139,18 @@ def test_exact_non_visible_prediction_solves_the_nonlinear_model(d: int) -> None
     rate = rng.normal(size=r)
     dt = 0.05
     visible = np.zeros(3, dtype=bool)
-    x_next, _ = propagate(x, cov, is_position, np.zeros((3, d)), visible, rate, dt, NOISE, d, "exact")
+    x_next, _ = propagate(
+        x, cov, is_position, np.zeros((3, d)), visible, rate, dt, NOISE, d, "exact"
+    )
 
     def flow(state: np.ndarray) -> np.ndarray:
-        solution = solve_ivp(lambda _, y: _continuous_derivative(y, rate, is_position, d), (0.0, dt), state, rtol=1e-12, atol=1e-12)
+        solution = solve_ivp(
+            lambda _, y: _continuous_derivative(y, rate, is_position, d),
+            (0.0, dt),
+            state,
+            rtol=1e-12,
+            atol=1e-12,
+        )
         return solution.y[:, -1]
 
     np.testing.assert_allclose(x_next, flow(x), atol=1e-9)
@@ -135,10 +165,14 @@ def test_exact_non_visible_prediction_solves_the_nonlinear_model(d: int) -> None
     no_bias = cov.copy()
     no_bias[d : d + r, :] = 0.0
     no_bias[:, d : d + r] = 0.0
-    _, cov_next = propagate(x, no_bias, is_position, np.zeros((3, d)), visible, rate, dt, NOISE, d, "exact")
+    _, cov_next = propagate(
+        x, no_bias, is_position, np.zeros((3, d)), visible, rate, dt, NOISE, d, "exact"
+    )
     np.testing.assert_allclose(cov_next, jac @ no_bias @ jac.T + q, atol=1e-8)
     # the bias column Gamma M(f_hat) is the linearised-system flow: first order in Ts
-    _, cov_next = propagate(x, cov, is_position, np.zeros((3, d)), visible, rate, dt, NOISE, d, "exact")
+    _, cov_next = propagate(
+        x, cov, is_position, np.zeros((3, d)), visible, rate, dt, NOISE, d, "exact"
+    )
     np.testing.assert_allclose(cov_next, jac @ cov @ jac.T + q, atol=5 * dt**2 * np.abs(cov).max())
 
 
@@ -150,8 +184,12 @@ def test_exact_rotation_flow_has_no_euler_dilation() -> None:
     cov = np.eye(5) * 1e-4
     rate = np.array([0.4])
     hidden = np.array([False])
-    euler, _ = propagate(x, cov, np.array([True]), np.zeros((1, 2)), hidden, rate, 0.1, NOISE, 2, "euler")
-    exact, _ = propagate(x, cov, np.array([True]), np.zeros((1, 2)), hidden, rate, 0.1, NOISE, 2, "exact")
+    euler, _ = propagate(
+        x, cov, np.array([True]), np.zeros((1, 2)), hidden, rate, 0.1, NOISE, 2, "euler"
+    )
+    exact, _ = propagate(
+        x, cov, np.array([True]), np.zeros((1, 2)), hidden, rate, 0.1, NOISE, 2, "exact"
+    )
     assert np.linalg.norm(euler[3:]) - 10.0 == pytest.approx(10.0 * 0.04**2 / 2, rel=1e-3)
     assert abs(np.linalg.norm(exact[3:]) - 10.0) < 1e-12
 
@@ -163,7 +201,9 @@ def test_euler_converges_to_the_exact_rotation_for_small_steps() -> None:
     cov = np.eye(5) * 1e-4
     rate = np.array([0.4])
     for _ in range(1000):
-        x, cov = propagate(x, cov, np.array([True]), np.zeros((1, 2)), np.array([False]), rate, 1e-3, NOISE, 2)
+        x, cov = propagate(
+            x, cov, np.array([True]), np.zeros((1, 2)), np.array([False]), rate, 1e-3, NOISE, 2
+        )
     assert np.allclose(x[3:], expm(-skew_rate(rate, 2) * 1.0) @ p, atol=1e-3)
 
 
@@ -186,7 +226,9 @@ def test_kalman_update_matches_textbook_joseph_form() -> None:
     h[np.arange(4), indices] = 1.0
     r = np.diag([0.1, 0.2, 0.3, 0.4])
     z = rng.normal(size=4)
-    x_post, cov_post, result = kalman_update(x, cov, indices, z, r, [np.array([0, 1]), np.array([2, 3])])
+    x_post, cov_post, result = kalman_update(
+        x, cov, indices, z, r, [np.array([0, 1]), np.array([2, 3])]
+    )
     s = h @ cov @ h.T + r
     k = cov @ h.T @ np.linalg.inv(s)
     joseph = (np.eye(n) - k @ h) @ cov @ (np.eye(n) - k @ h).T + k @ r @ k.T

@@ -19,20 +19,27 @@ LANDMARKS = np.array([[3.0, 1.0], [2.0, -2.0], [5.0, 0.5], [4.0, 3.0]])
 
 
 def _finite(estimator: SensorBasedSlam) -> bool:
-    return bool(np.all(np.isfinite(estimator.state.x)) and np.all(np.isfinite(estimator.state.covariance)))
+    return bool(
+        np.all(np.isfinite(estimator.state.x)) and np.all(np.isfinite(estimator.state.covariance))
+    )
 
 
 def test_converges_from_wrong_initial_velocity_and_bias() -> None:
     sequence = planar_sequence(40.0, (0.5, 0.0), 0.05, LANDMARKS, seed=3, gyro_bias=0.01)
     config = SensorBasedConfig(
-        association="jcbb", initial_velocity_error_m_s=[0.4, -0.3], initial_velocity_sigma_m_s=0.5, initial_gyro_bias_sigma_rad_s=0.03
+        association="jcbb",
+        initial_velocity_error_m_s=[0.4, -0.3],
+        initial_velocity_sigma_m_s=0.5,
+        initial_gyro_bias_sigma_rad_s=0.03,
     )
     _, estimate = run(SensorBasedSlam, config, sequence)
     velocity = estimate.causal.block("velocity")
     bias = estimate.causal.block("gyro_bias")
     assert velocity.frame == Frame.BODY
     assert np.linalg.norm(velocity.values[0] - [0.5, 0.0]) > 0.4
-    assert np.linalg.norm(velocity.values[-1] - [0.5, 0.0]) < 3 * np.sqrt(np.trace(velocity.covariances[-1]))
+    assert np.linalg.norm(velocity.values[-1] - [0.5, 0.0]) < 3 * np.sqrt(
+        np.trace(velocity.covariances[-1])
+    )
     assert abs(bias.values[-1, 0] - 0.01) < 3 * np.sqrt(bias.covariances[-1, 0, 0])
     # Uncertainty of the vehicle variables decreases (the paper's Fig. 2(a)).
     assert np.trace(velocity.covariances[-1]) < 0.05 * np.trace(velocity.covariances[0])
@@ -42,7 +49,9 @@ def test_converges_from_wrong_initial_velocity_and_bias() -> None:
 
 
 def test_long_stretch_without_landmarks_keeps_state_finite_and_recovers() -> None:
-    sequence = planar_sequence(60.0, (0.3, 0.0), 0.0, LANDMARKS + [6.0, 0.0], seed=4, blank=(10.0, 40.0))
+    sequence = planar_sequence(
+        60.0, (0.3, 0.0), 0.0, LANDMARKS + [6.0, 0.0], seed=4, blank=(10.0, 40.0)
+    )
     estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence)
     assert _finite(estimator)
     velocity = estimate.causal.block("velocity")
@@ -65,7 +74,9 @@ def test_duplicate_points_in_a_scan_create_one_landmark() -> None:
                 covariances=np.concatenate([measurement.covariances, measurement.covariances]),
             )
         doubled.append(measurement)
-    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence, doubled)
+    estimator, estimate = run(
+        SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence, doubled
+    )
     assert len(estimator.state.landmark_ids()) == 1
     diagnostics = estimate.diagnostics
     # Every scan: one measurement used, its duplicate recorded as rejected (-1).
@@ -77,10 +88,14 @@ def test_nan_rates_are_skipped_and_reported() -> None:
     sequence = planar_sequence(10.0, (0.3, 0.0), 0.1, LANDMARKS, seed=6)
     measurements = list(sequence.measurements())
     corrupted = [
-        GyroSample(t=m.t, rate=np.array([np.nan])) if isinstance(m, GyroSample) and 2.0 < m.t < 3.0 else m
+        GyroSample(t=m.t, rate=np.array([np.nan]))
+        if isinstance(m, GyroSample) and 2.0 < m.t < 3.0
+        else m
         for m in measurements
     ]
-    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence, corrupted)
+    estimator, estimate = run(
+        SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence, corrupted
+    )
     assert _finite(estimator)
     assert estimator.skipped["nan_rate"] > 0
     assert any(event.kind == "skipped_input" for event in estimate.diagnostics.events)
@@ -92,7 +107,11 @@ def test_nan_points_are_dropped_and_time_going_backwards_is_an_input_error() -> 
     estimator = SensorBasedSlam(SensorBasedConfig(association="jcbb"), sequence)
     for measurement in sequence.measurements():
         estimator.process(measurement)
-    bad = LandmarkScan(t=2.1, points=np.array([[np.nan, 1.0], [3.0, 1.0]]), covariances=np.repeat(np.eye(2)[None] * 0.01, 2, 0))
+    bad = LandmarkScan(
+        t=2.1,
+        points=np.array([[np.nan, 1.0], [3.0, 1.0]]),
+        covariances=np.repeat(np.eye(2)[None] * 0.01, 2, 0),
+    )
     estimator.process(bad)
     assert estimator.skipped["nan_points"] == 1 and _finite(estimator)
     with pytest.raises(InputError, match="backwards"):
@@ -124,11 +143,15 @@ def _oracle_precision(sequence) -> float:
         if not isinstance(measurement, LandmarkScan) or measurement.count == 0:
             continue
         index = np.searchsorted(truth.pose.t, measurement.t - 1e-9)
-        body = (truth.landmarks.positions - truth.pose.positions[index]) @ rot2(float(truth.pose.rotations[index]))
+        body = (truth.landmarks.positions - truth.pose.positions[index]) @ rot2(
+            float(truth.pose.rotations[index])
+        )
         nu = measurement.points[:, None, :] - body[None]
         cost = np.einsum("kmi,kij,kmj->km", nu, np.linalg.inv(measurement.covariances), nu)
         rows, columns = linear_sum_assignment(cost)
-        correct += int(np.sum(truth.landmarks.ids[columns] == scan_ids[round(measurement.t, 6)][rows]))
+        correct += int(
+            np.sum(truth.landmarks.ids[columns] == scan_ids[round(measurement.t, 6)][rows])
+        )
         total += len(rows)
     return correct / total
 
@@ -153,7 +176,9 @@ def test_jcbb_association_precision_and_recall_at_reduced_noise() -> None:
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_jcbb_association_reaches_0_99_at_default_noise_when_corners_are_separable(seed: int) -> None:
+def test_jcbb_association_reaches_0_99_at_default_noise_when_corners_are_separable(
+    seed: int,
+) -> None:
     """The paper's laser noise, unchanged; 1 m deep door niches (corners >= 0.8 m apart
     instead of 0.3 m) and corners detected within 6 m; the joint gate at 0.999 (at 0.99 the
     gate alone rejects ~1 % of correct pairs). Measured over the 60 s: 0.9956/0.9950 and
@@ -162,7 +187,9 @@ def test_jcbb_association_reaches_0_99_at_default_noise_when_corners_are_separab
     even JCBB against the true map from the true pose gets about 0.95."""
     options = {"duration_s": "60", "niche_depth_m": "1.0", "range_m": "6"}
     sequence = load_scenario("guerreiro-loop", seed, options)
-    _, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb", gate_probability=0.999), sequence)
+    _, estimate = run(
+        SensorBasedSlam, SensorBasedConfig(association="jcbb", gate_probability=0.999), sequence
+    )
     score = score_associations(estimate.diagnostics, sequence.ground_truth.scan_ids)
     assert score.precision >= 0.99
     assert score.recall >= 0.99

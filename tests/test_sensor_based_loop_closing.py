@@ -7,7 +7,11 @@ import numpy as np
 from datasets.rotations import rot2
 from filters.sensor_based.earth_frame import weighted_rigid_alignment
 from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
-from filters.sensor_based.loop_closing import LoopClosurePolicy, constraint_update, find_loop_closure
+from filters.sensor_based.loop_closing import (
+    LoopClosurePolicy,
+    constraint_update,
+    find_loop_closure,
+)
 from tests.sensor_based_support import planar_sequence, run
 
 LANDMARKS = np.array([[3.0, 1.0], [2.0, -2.0], [5.0, 0.5], [4.0, 3.0], [7.0, -1.0]])
@@ -34,20 +38,34 @@ def test_find_loop_closure_uses_the_cross_covariance() -> None:
     n = len(positions)
     joint = 0.01**2 * np.eye(2 * n)
     joint[8:, 8:] += np.kron(np.ones((4, 4)), np.eye(2))  # old set: common 1 m uncertainty
-    pairs = find_loop_closure(positions, joint, np.arange(4), np.arange(4, 8), LoopClosurePolicy(min_pairs=3))
+    pairs = find_loop_closure(
+        positions, joint, np.arange(4), np.arange(4, 8), LoopClosurePolicy(min_pairs=3)
+    )
     assert sorted(pairs) == [(0, 4), (1, 5), (2, 6), (3, 7)]
-    assert find_loop_closure(positions, joint, np.arange(2), np.arange(4, 8), LoopClosurePolicy(min_pairs=3)) == []
+    assert (
+        find_loop_closure(
+            positions, joint, np.arange(2), np.arange(4, 8), LoopClosurePolicy(min_pairs=3)
+        )
+        == []
+    )
 
 
 def test_filter_closes_the_loop_after_losing_sight_of_its_landmarks() -> None:
     # Landmarks seen for 10 s, lost for 40 s (the map drifts), seen again: the filter starts
     # duplicates (the old ones are outside its association window) and loop closing fuses
     # each duplicate with its original.
-    sequence = planar_sequence(60.0, (0.2, 0.0), 0.02, LANDMARKS + [8.0, 0.0], seed=1, blank=(10.0, 50.0))
+    sequence = planar_sequence(
+        60.0, (0.2, 0.0), 0.02, LANDMARKS + [8.0, 0.0], seed=1, blank=(10.0, 50.0)
+    )
     # 40 s blind at sigma_v = 0.1 leaves the old landmarks metres uncertain: lift the
     # candidate limit, and check below that with the default limit the loop is not closed.
     config = SensorBasedConfig(
-        association="jcbb", association_window_s=3.0, loop_old_after_s=20.0, loop_min_pairs=3, max_missed_in_view=10_000, loop_max_old_sigma_m=50.0
+        association="jcbb",
+        association_window_s=3.0,
+        loop_old_after_s=20.0,
+        loop_min_pairs=3,
+        max_missed_in_view=10_000,
+        loop_max_old_sigma_m=50.0,
     )
     estimator, estimate = run(SensorBasedSlam, config, sequence)
     closures = [event for event in estimate.diagnostics.events if event.kind == "loop_closure"]
@@ -71,7 +89,9 @@ def test_weighted_rigid_alignment_recovers_a_known_motion() -> None:
 
     rotation = so3_exp(angle)
     target = source @ rotation.T + np.array([1.0, 2.0, -0.5])
-    estimated_rotation, translation = weighted_rigid_alignment(source, target, rng.uniform(0.5, 2.0, 6))
+    estimated_rotation, translation = weighted_rigid_alignment(
+        source, target, rng.uniform(0.5, 2.0, 6)
+    )
     assert np.allclose(estimated_rotation, rotation) and np.allclose(translation, [1.0, 2.0, -0.5])
     planar = rng.normal(size=(4, 2))
     rotated = planar @ rot2(0.7).T + [0.3, -0.2]

@@ -28,7 +28,12 @@ def _with_extra_point(sequence, at_t: float, point: np.ndarray):
 def test_a_landmark_seen_once_is_deleted_as_intermittent() -> None:
     sequence = planar_sequence(10.0, (0.2, 0.0), 0.0, LANDMARKS, seed=1)
     measurements = _with_extra_point(sequence, 1.0, np.array([[-4.0, 6.0]]))
-    estimator, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb", probation_s=3.0, min_observations=3), sequence, measurements)
+    estimator, estimate = run(
+        SensorBasedSlam,
+        SensorBasedConfig(association="jcbb", probation_s=3.0, min_observations=3),
+        sequence,
+        measurements,
+    )
     assert estimator.manager.deleted["intermittent"] == 1
     assert len(estimator.state.landmark_ids()) == len(LANDMARKS)
     counts = estimate.diagnostics.landmark_count
@@ -36,7 +41,9 @@ def test_a_landmark_seen_once_is_deleted_as_intermittent() -> None:
 
 
 def test_unseen_in_view_deletion_and_cap() -> None:
-    policy = ManagementPolicy(in_view_range_m=5.0, max_missed_in_view=3, min_observations=1, max_landmarks=2)
+    policy = ManagementPolicy(
+        in_view_range_m=5.0, max_missed_in_view=3, min_observations=1, max_landmarks=2
+    )
     manager = LandmarkManager(policy)
     for landmark_id in range(3):
         manager.created(landmark_id, 0.0)

@@ -27,7 +27,9 @@ BIAS_WALK = {"sigma_gyro_bias_rad_s": 5e-3, "sigma_velocity_m_s": 0.01}
 
 def _vehicle_trace_ratio(sequence, **config) -> tuple[float, float, np.ndarray]:
     """(largest vehicle-covariance eigenvalue at the end / at mid-run, its final value, final velocity)."""
-    _, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb", **BIAS_WALK, **config), sequence)
+    _, estimate = run(
+        SensorBasedSlam, SensorBasedConfig(association="jcbb", **BIAS_WALK, **config), sequence
+    )
     t = estimate.diagnostics.extras["vehicle_t"]
     covs = estimate.diagnostics.extras["vehicle_covariance"].reshape(-1, 3, 3)
     traces = np.linalg.eigvalsh(covs)[:, -1]

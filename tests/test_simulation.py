@@ -66,14 +66,20 @@ def test_same_seed_gives_identical_streams_and_other_seed_other_noise(scenario):
     for x, y in zip(a, b):
         for array_x, array_y in zip(measurement_arrays(x), measurement_arrays(y)):
             np.testing.assert_array_equal(array_x, array_y)
-    inertial_a = np.array([np.concatenate(measurement_arrays(m)) for m in a if not isinstance(m, LandmarkScan)])
-    inertial_c = np.array([np.concatenate(measurement_arrays(m)) for m in c if not isinstance(m, LandmarkScan)])
+    inertial_a = np.array(
+        [np.concatenate(measurement_arrays(m)) for m in a if not isinstance(m, LandmarkScan)]
+    )
+    inertial_c = np.array(
+        [np.concatenate(measurement_arrays(m)) for m in c if not isinstance(m, LandmarkScan)]
+    )
     assert np.mean(inertial_a != inertial_c) > 0.99
     points_a = np.concatenate([m.points for m in a if isinstance(m, LandmarkScan)])
     points_c = np.concatenate([m.points for m in c if isinstance(m, LandmarkScan)])
     assert points_a.shape == points_c.shape and np.mean(points_a != points_c) > 0.99
     # The world is the same for every noise seed.
-    np.testing.assert_array_equal(first.ground_truth.landmarks.positions, other.ground_truth.landmarks.positions)
+    np.testing.assert_array_equal(
+        first.ground_truth.landmarks.positions, other.ground_truth.landmarks.positions
+    )
 
 
 def test_stream_is_time_ordered_with_inertial_first_at_equal_times():
@@ -84,7 +90,9 @@ def test_stream_is_time_ordered_with_inertial_first_at_equal_times():
     for previous, current in zip(measurements, measurements[1:]):
         if previous.t == current.t:
             assert not (isinstance(previous, LandmarkScan) and isinstance(current, ImuSample))
-    assert {m.sensor for m in measurements} == set(sequence.sensors) == {Sensor.IMU, Sensor.LANDMARKS}
+    assert (
+        {m.sensor for m in measurements} == set(sequence.sensors) == {Sensor.IMU, Sensor.LANDMARKS}
+    )
     planar = load_scenario("guerreiro-loop", 0, SHORT)
     assert planar.sensors == {Sensor.GYRO, Sensor.LANDMARKS} and planar.dimension == 2
     gyro = inertial_of(planar)[0]
@@ -121,7 +129,9 @@ def strapdown_final_error(sequence) -> tuple[float, float, float]:
 
 @pytest.mark.parametrize("scenario", ["aghili-rover", "circle", "static"])
 def test_noise_free_imu_integrates_back_to_the_true_trajectory(scenario):
-    sequence = load_scenario(scenario, 0, {"noise_scale": "0", "imu_rate_hz": "1000", "duration_s": "10"})
+    sequence = load_scenario(
+        scenario, 0, {"noise_scale": "0", "imu_rate_hz": "1000", "duration_s": "10"}
+    )
     position_error, velocity_error, rotation_error = strapdown_final_error(sequence)
     assert position_error < 1e-4 and velocity_error < 1e-5 and rotation_error < 1e-6
     # At rest the accelerometer reads +9.81 along the world up axis.
@@ -132,11 +142,15 @@ def test_noise_free_imu_integrates_back_to_the_true_trajectory(scenario):
 
 
 def test_noise_free_planar_gyro_integrates_to_the_true_heading():
-    sequence = load_scenario("guerreiro-loop", 0, {"noise_scale": "0", "gyro_rate_hz": "1000", "duration_s": "60"})
+    sequence = load_scenario(
+        "guerreiro-loop", 0, {"noise_scale": "0", "gyro_rate_hz": "1000", "duration_s": "60"}
+    )
     samples = inertial_of(sequence)
     t = np.array([m.t for m in samples])
     rate = np.array([m.rate[0] for m in samples])
-    heading = sequence.initial_state.rotation + np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+    heading = sequence.initial_state.rotation + np.concatenate(
+        [[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))]
+    )
     truth = sequence.ground_truth.pose.rotations
     error = np.angle(np.exp(1j * (heading - truth)))
     assert np.max(np.abs(error)) < 1e-5
@@ -148,7 +162,9 @@ def test_noise_free_planar_gyro_integrates_to_the_true_heading():
 
 
 def test_inertial_noise_has_the_stated_discrete_std():
-    sequence = load_scenario("static", 7, {"imu_rate_hz": "200", "duration_s": "60", "gyro_bias_sigma_rad_s": "0"})
+    sequence = load_scenario(
+        "static", 7, {"imu_rate_hz": "200", "duration_s": "60", "gyro_bias_sigma_rad_s": "0"}
+    )
     samples = inertial_of(sequence)
     truth = sequence.ground_truth
     gyro = np.array([m.gyro for m in samples]) - truth.history.block(BlockName.GYRO_BIAS).values
@@ -158,10 +174,16 @@ def test_inertial_noise_has_the_stated_discrete_std():
     sigmas = kitti_imu_sigmas()
     assert sequence.noise.gyro_noise_density == sigmas["GyroscopeSigma"] == 1.75e-4
     assert sequence.noise.accel_noise_density == sigmas["AccelerometerSigma"] == 0.01
-    np.testing.assert_allclose(np.std(gyro, axis=0), sigmas["GyroscopeSigma"] * np.sqrt(200), rtol=0.03)
-    np.testing.assert_allclose(np.std(accel, axis=0), sigmas["AccelerometerSigma"] * np.sqrt(200), rtol=0.03)
+    np.testing.assert_allclose(
+        np.std(gyro, axis=0), sigmas["GyroscopeSigma"] * np.sqrt(200), rtol=0.03
+    )
+    np.testing.assert_allclose(
+        np.std(accel, axis=0), sigmas["AccelerometerSigma"] * np.sqrt(200), rtol=0.03
+    )
     steps = np.diff(truth.history.block(BlockName.ACCEL_BIAS).values, axis=0)
-    np.testing.assert_allclose(np.std(steps, axis=0), sigmas["AccelerometerBiasSigma"] * np.sqrt(1 / 200), rtol=0.05)
+    np.testing.assert_allclose(
+        np.std(steps, axis=0), sigmas["AccelerometerBiasSigma"] * np.sqrt(1 / 200), rtol=0.05
+    )
     np.testing.assert_array_equal(truth.history.block(BlockName.GYRO_BIAS).values[0], 0.0)
 
 
@@ -172,13 +194,21 @@ def test_noise_free_landmarks_are_exactly_body_frame_positions(scenario):
     for scan in scans_of(sequence):
         assert scan.points.shape == (scan.count, sequence.dimension)
         assert scan.covariances.shape == (scan.count, sequence.dimension, sequence.dimension)
-        np.testing.assert_allclose(scan.points, true_body_points(sequence, scan, scan.ids), atol=1e-9)
+        np.testing.assert_allclose(
+            scan.points, true_body_points(sequence, scan, scan.ids), atol=1e-9
+        )
         checked += scan.count
     assert checked > 100
 
 
 def test_field_of_view_and_range_are_respected_and_complete():
-    options = {"noise_scale": "0", "fov_deg": "90", "range_m": "12", "vertical_fov_deg": "20", "duration_s": "60"}
+    options = {
+        "noise_scale": "0",
+        "fov_deg": "90",
+        "range_m": "12",
+        "vertical_fov_deg": "20",
+        "duration_s": "60",
+    }
     sequence = load_scenario("aghili-rover", 2, options)
     truth = sequence.ground_truth
     for scan in scans_of(sequence):
@@ -186,14 +216,21 @@ def test_field_of_view_and_range_are_respected_and_complete():
         distance = np.linalg.norm(every, axis=1)
         azimuth = np.degrees(np.arctan2(every[:, 1], every[:, 0]))
         elevation = np.degrees(np.arctan2(every[:, 2], np.hypot(every[:, 0], every[:, 1])))
-        expected = (distance <= 12) & (distance >= 0.5) & (np.abs(azimuth) <= 45) & (np.abs(elevation) <= 10)
+        expected = (
+            (distance <= 12)
+            & (distance >= 0.5)
+            & (np.abs(azimuth) <= 45)
+            & (np.abs(elevation) <= 10)
+        )
         np.testing.assert_array_equal(np.sort(scan.ids), truth.landmarks.ids[expected])
 
 
 def segments_cross(p, q, a, b) -> bool:
     """Independent scalar test: do segments pq and ab properly cross?"""
+
     def orient(u, v, w):
         return (v[0] - u[0]) * (w[1] - u[1]) - (v[1] - u[1]) * (w[0] - u[0])
+
     return orient(p, q, a) * orient(p, q, b) < 0 and orient(a, b, p) * orient(a, b, q) < 0
 
 
@@ -213,7 +250,8 @@ def test_walls_occlude_corners():
     assert observed_pairs > 500
     # From the middle of the bottom corridor, the top corners of the central block are behind it.
     central_block_top = [
-        i for i, corner in enumerate(plan.corners)
+        i
+        for i, corner in enumerate(plan.corners)
         if 1.0 < corner[1] < 7.0 and corner[1] > 6.5 and 1.3 <= corner[0] <= 18.7
     ]
     assert central_block_top
@@ -225,7 +263,9 @@ def test_walls_occlude_corners():
     assert np.mean(counts >= 2) > 0.95
     # The vehicle itself never passes through a wall.
     path = truth.pose.positions[::5]
-    assert not any(segments_cross(p, q, a, b) for p, q in zip(path, path[1:]) for a, b in plan.walls)
+    assert not any(
+        segments_cross(p, q, a, b) for p, q in zip(path, path[1:]) for a, b in plan.walls
+    )
 
 
 def whitened_errors(scenario: str, options: dict[str, str]) -> tuple[np.ndarray, int]:
@@ -233,7 +273,9 @@ def whitened_errors(scenario: str, options: dict[str, str]) -> tuple[np.ndarray,
     errors = []
     for scan in scans_of(noisy):
         residual = scan.points - true_body_points(noisy, scan, scan.ids)
-        errors.append(np.einsum("ki,kij,kj->k", residual, np.linalg.inv(scan.covariances), residual))
+        errors.append(
+            np.einsum("ki,kij,kj->k", residual, np.linalg.inv(scan.covariances), residual)
+        )
     return np.concatenate(errors), noisy.dimension
 
 
@@ -254,7 +296,9 @@ def test_aghili_rover_figures():
     duration = truth.pose.t[-1]
     assert 120 <= duration <= 240
     assert 0.9 <= np.mean(speed) <= 1.5 and np.min(speed) > 0.4
-    assert np.all(truth.pose.positions[:, :2] >= 0) and np.all(truth.pose.positions[:, :2] <= [30, 60])
+    assert np.all(truth.pose.positions[:, :2] >= 0) and np.all(
+        truth.pose.positions[:, :2] <= [30, 60]
+    )
     assert 1.0 < np.ptp(truth.pose.positions[:, 2]) < 6.0
     roll, pitch = [], []
     for matrix in truth.pose.rotation_matrices():
@@ -279,7 +323,9 @@ def test_anchor_order_starts_with_three_noncollinear_visible_landmarks():
         assert sorted(anchors.ids) == sorted(sequence.ground_truth.landmarks.ids)
         a, b, c = anchors.positions[:3]
         u, v = b - a, c - a
-        area = 0.5 * (np.linalg.norm(np.cross(u, v)) if len(u) == 3 else abs(u[0] * v[1] - u[1] * v[0]))
+        area = 0.5 * (
+            np.linalg.norm(np.cross(u, v)) if len(u) == 3 else abs(u[0] * v[1] - u[1] * v[0])
+        )
         assert area > 1.0
 
 
@@ -291,7 +337,7 @@ def test_guerreiro_loop_figures():
     speed = np.linalg.norm(truth.history.block(BlockName.VELOCITY).values, axis=1)
     assert np.mean(speed) == pytest.approx(0.4, abs=0.01) and np.ptp(speed) > 0.1
     # It passes its start again (loop closable) and ends a few metres past it.
-    later = positions[len(positions) // 2:]
+    later = positions[len(positions) // 2 :]
     assert np.min(np.linalg.norm(later - positions[0], axis=1)) < 0.05
     assert np.linalg.norm(positions[-1] - positions[0]) < 10
     # Counterclockwise: the heading gains a full turn.
@@ -313,7 +359,9 @@ def test_range_bearing_covariance_matches_monte_carlo_and_is_psd():
     ranges = rho + sigma_rho * rng.standard_normal(draws)
     bearings = alpha + sigma_alpha * rng.standard_normal(draws)
     points = ranges[:, None] * np.column_stack([np.cos(bearings), np.sin(bearings)])
-    covariance = range_bearing_covariance(np.array([rho]), np.array([alpha]), np.array([sigma_rho]), sigma_alpha)[0]
+    covariance = range_bearing_covariance(
+        np.array([rho]), np.array([alpha]), np.array([sigma_rho]), sigma_alpha
+    )[0]
     np.testing.assert_allclose(np.cov(points.T), covariance, rtol=0.02, atol=1e-5)
     assert np.all(np.linalg.eigvalsh(covariance) > 0)
 
@@ -336,9 +384,14 @@ def test_empty_scans_are_emitted_with_zero_rows():
     sequence = load_scenario("static", 0, {"range_m": "1", "duration_s": "2"})
     scans = scans_of(sequence)
     assert len(scans) == 21
-    assert all(scan.count == 0 and scan.points.shape == (0, 3) and scan.covariances.shape == (0, 3, 3) for scan in scans)
+    assert all(
+        scan.count == 0 and scan.points.shape == (0, 3) and scan.covariances.shape == (0, 3, 3)
+        for scan in scans
+    )
     figures = sequence_figures(sequence)
-    assert figures["scans"] == 21 and figures["visible_max"] == 0 and figures["path_length_m"] == 0.0
+    assert (
+        figures["scans"] == 21 and figures["visible_max"] == 0 and figures["path_length_m"] == 0.0
+    )
 
 
 @pytest.mark.parametrize(
@@ -360,7 +413,10 @@ def test_bad_options_raise_input_error(scenario, options, message):
 def test_metadata_is_plain_json_and_imu_densities_can_be_overridden():
     sequence = load_scenario("circle", 0, {"gyro_noise_density": "0.002", "duration_s": "1"})
     assert json.loads(json.dumps(sequence.metadata)) == sequence.metadata
-    assert sequence.metadata["source"] == "simulator" and sequence.metadata["options"]["gyro_noise_density"] == 0.002
+    assert (
+        sequence.metadata["source"] == "simulator"
+        and sequence.metadata["options"]["gyro_noise_density"] == 0.002
+    )
     assert sequence.noise.gyro_noise_density == 0.002 and sequence.noise.accel_noise_density == 0.01
     planar = load_scenario("guerreiro-loop", 0, {"duration_s": "1"})
     assert json.loads(json.dumps(planar.metadata)) == planar.metadata
@@ -370,12 +426,16 @@ def test_describe_lists_every_scenario_and_its_options():
     lines = describe_scenarios()
     for scenario in SCENARIOS:
         assert any(line.startswith(f"sim:{scenario}:") for line in lines)
-    assert any("duration_s" in line for line in lines) and any("landmark_rate_hz" in line for line in lines)
+    assert any("duration_s" in line for line in lines) and any(
+        "landmark_rate_hz" in line for line in lines
+    )
 
 
 def test_corner_wall_directions_are_body_frame_unit_vectors():
     plan = ring_corridor_building()
-    sequence = load_scenario("guerreiro-loop", 0, {"directions": "true", "noise_scale": "0", "duration_s": "20"})
+    sequence = load_scenario(
+        "guerreiro-loop", 0, {"directions": "true", "noise_scale": "0", "duration_s": "20"}
+    )
     truth = sequence.ground_truth
     for scan in scans_of(sequence)[::10]:
         index = int(np.argmin(np.abs(truth.pose.t - scan.t)))
@@ -389,15 +449,22 @@ def test_corner_wall_directions_are_body_frame_unit_vectors():
     noisy = load_scenario("guerreiro-loop", 0, {"directions": "true", "duration_s": "20"})
     angles = []
     for clean, dirty in zip(scans_of(sequence), scans_of(noisy)):
-        cross = clean.directions[..., 0] * dirty.directions[..., 1] - clean.directions[..., 1] * dirty.directions[..., 0]
+        cross = (
+            clean.directions[..., 0] * dirty.directions[..., 1]
+            - clean.directions[..., 1] * dirty.directions[..., 0]
+        )
         dot = np.sum(clean.directions * dirty.directions, axis=2)
         angles.append(np.arctan2(cross, dot).ravel())
     assert np.degrees(np.std(np.concatenate(angles))) == pytest.approx(2.0, rel=0.05)
-    assert all(scan.directions is None for scan in scans_of(load_scenario("guerreiro-loop", 0, {"duration_s": "2"})))
+    assert all(
+        scan.directions is None
+        for scan in scans_of(load_scenario("guerreiro-loop", 0, {"duration_s": "2"}))
+    )
 
 
 @pytest.mark.parametrize(
-    ("scenario", "extra"), [("aghili-rover", {}), ("guerreiro-loop", {}), ("guerreiro-loop", {"directions": "true"})]
+    ("scenario", "extra"),
+    [("aghili-rover", {}), ("guerreiro-loop", {}), ("guerreiro-loop", {"directions": "true"})],
 )
 def test_folder_is_byte_identical_per_seed_and_round_trips(scenario, extra, tmp_path):
     options = {"duration_s": "15", "ids": "false", **extra}
@@ -418,7 +485,9 @@ def test_folder_is_byte_identical_per_seed_and_round_trips(scenario, extra, tmp_
     pairs = list(zip(original.measurements(), loaded.measurements(), strict=True))
     for expected, actual in pairs:
         assert type(expected) is type(actual) and expected.t == pytest.approx(actual.t, abs=1e-9)
-        for array_expected, array_actual in zip(measurement_arrays(expected), measurement_arrays(actual), strict=True):
+        for array_expected, array_actual in zip(
+            measurement_arrays(expected), measurement_arrays(actual), strict=True
+        ):
             np.testing.assert_array_equal(array_expected, array_actual)
     truth, loaded_truth = original.ground_truth, loaded.ground_truth
     np.testing.assert_allclose(loaded_truth.pose.positions, truth.pose.positions, atol=1e-9)
@@ -427,7 +496,9 @@ def test_folder_is_byte_identical_per_seed_and_round_trips(scenario, extra, tmp_
         assert t == pytest.approx(loaded_t, abs=1e-9)
         np.testing.assert_array_equal(ids, loaded_ids)
     for name in (BlockName.VELOCITY, BlockName.GYRO_BIAS):
-        np.testing.assert_array_equal(loaded_truth.history.block(name).values, truth.history.block(name).values)
+        np.testing.assert_array_equal(
+            loaded_truth.history.block(name).values, truth.history.block(name).values
+        )
     np.testing.assert_array_equal(loaded.known_landmarks.ids, original.known_landmarks.ids)
     np.testing.assert_array_equal(loaded.initial_state.position, original.initial_state.position)
 
@@ -456,13 +527,17 @@ def test_guerreiro_random_speed_is_seeded_covers_the_loop_and_keeps_other_stream
     np.testing.assert_array_equal(speed, again.ground_truth.body_velocity.values)
     assert np.abs(speed[:, 0] - other.ground_truth.body_velocity.values[:, 0]).max() > 0.01
     assert np.abs(speed[:, 1]).max() < 1e-12 and speed[:, 0].min() > 0.2
-    np.testing.assert_allclose(first.ground_truth.pose.positions[-1], sinusoidal.ground_truth.pose.positions[-1], atol=1e-6)
+    np.testing.assert_allclose(
+        first.ground_truth.pose.positions[-1], sinusoidal.ground_truth.pose.positions[-1], atol=1e-6
+    )
     # increments of a random walk of density 0.02 m/s/sqrt(s) (mean reversion over 5 s is slow at 0.1 s)
     increments = np.diff(speed[:, 0])
     dt = np.diff(first.ground_truth.body_velocity.t)[0]
     assert 0.015 < np.std(increments) / np.sqrt(dt) < 0.025
     gyro_bias = first.ground_truth.history.block("gyro_bias").values
-    np.testing.assert_array_equal(gyro_bias, sinusoidal.ground_truth.history.block("gyro_bias").values)
+    np.testing.assert_array_equal(
+        gyro_bias, sinusoidal.ground_truth.history.block("gyro_bias").values
+    )
 
 
 def test_niche_depth_sets_the_closest_corner_separation() -> None:

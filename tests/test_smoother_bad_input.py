@@ -36,7 +36,10 @@ def _run(sequence, **config):
 
 
 def test_imu_gap_longer_than_the_threshold_is_an_input_error_naming_the_time(rover):
-    gapped = _with_stream(rover, lambda items: [m for m in items if not (isinstance(m, ImuSample) and 1.0 < m.t < 2.0)])
+    gapped = _with_stream(
+        rover,
+        lambda items: [m for m in items if not (isinstance(m, ImuSample) and 1.0 < m.t < 2.0)],
+    )
     with pytest.raises(InputError, match=r"IMU gap: no sample between t=1\.000000 s"):
         _run(gapped, max_imu_gap_s=0.5)
 
@@ -104,7 +107,11 @@ def test_no_initial_state_is_an_indeterminate_system_input_error(rover):
 def test_gtsam_indeterminate_system_becomes_an_input_error():
     backend = Isam2Backend(0.05, 1, 0, dimension=2)
     graph = gtsam.NonlinearFactorGraph()
-    graph.add(gtsam.BetweenFactorPose2(X(0), X(1), gtsam.Pose2(1, 0, 0), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+    graph.add(
+        gtsam.BetweenFactorPose2(
+            X(0), X(1), gtsam.Pose2(1, 0, 0), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)
+        )
+    )
     values = gtsam.Values()
     values.insert(X(0), gtsam.Pose2())
     values.insert(X(1), gtsam.Pose2(1, 0, 0))
@@ -114,7 +121,10 @@ def test_gtsam_indeterminate_system_becomes_an_input_error():
 
 def test_missing_imu_noise_and_too_many_anchors_are_input_errors(rover):
     with pytest.raises(InputError, match="noise densities"):
-        SmootherIsam2(SmootherIsam2.Config(), replace(rover, noise=replace(rover.noise, accel_noise_density=None)))
+        SmootherIsam2(
+            SmootherIsam2.Config(),
+            replace(rover, noise=replace(rover.noise, accel_noise_density=None)),
+        )
     with pytest.raises(InputError, match="anchors"):
         SmootherIsam2(SmootherIsam2.Config(anchors=10_000), rover)
 

@@ -40,11 +40,19 @@ def test_batch_started_from_the_incremental_pass_is_not_worse_than_from_dead_rec
     sequence = load_dataset("victoria-park", 0, {"max_steps": "800"})
     errors = {}
     for guess in ("incremental", "dead-reckoning"):
-        estimator, estimate = _run(SmootherBatch, SmootherBatch.Config(initial_guess=guess), sequence)
+        estimator, estimate = _run(
+            SmootherBatch, SmootherBatch.Config(initial_guess=guess), sequence
+        )
         extras = estimate.diagnostics.extras
-        errors[guess] = (float(extras["batch_error_start"][0]), float(extras["batch_error_final"][0]), int(extras["batch_iterations"][0]))
+        errors[guess] = (
+            float(extras["batch_error_start"][0]),
+            float(extras["batch_error_final"][0]),
+            int(extras["batch_iterations"][0]),
+        )
     incremental, dead_reckoning = errors["incremental"], errors["dead-reckoning"]
-    assert incremental[0] < 1.01 * incremental[1] + 1.0  # the incremental pass is already at the optimum
+    assert (
+        incremental[0] < 1.01 * incremental[1] + 1.0
+    )  # the incremental pass is already at the optimum
     assert dead_reckoning[0] > 100 * incremental[1]  # dead reckoning starts far away
     assert incremental[1] <= dead_reckoning[1] * (1 + 1e-6)
     assert incremental[2] <= dead_reckoning[2]

@@ -10,13 +10,19 @@ from gtsam.symbol_shorthand import B, L, X
 from datasets.rotations import so3_exp, so3_log
 from smoothers.covariances import bias_covariances, pose_covariance
 from smoothers.imu_graph import bias_prior_sigmas
-from smoothers.landmark_factors import body_point_factor_2d, cartesian_point_factor_3d, landmark_prior
+from smoothers.landmark_factors import (
+    body_point_factor_2d,
+    cartesian_point_factor_3d,
+    landmark_prior,
+)
 
 
 def _interface_errors_3d(true_rotation, true_translation, pose: gtsam.Pose3) -> np.ndarray:
     """[Log(R_est^T R_true), R_est^T (p_true - p_est)]: body-frame right perturbation."""
     rotation = pose.rotation().matrix()
-    return np.r_[so3_log(rotation.T @ true_rotation), rotation.T @ (true_translation - pose.translation())]
+    return np.r_[
+        so3_log(rotation.T @ true_rotation), rotation.T @ (true_translation - pose.translation())
+    ]
 
 
 def test_pose3_marginal_is_the_interface_rotation_translation_body_covariance():
@@ -66,12 +72,16 @@ def test_pose2_marginal_is_the_interface_x_y_theta_covariance():
         for j, rho in enumerate(landmarks):
             graph.add(landmark_prior(L(j), rho, 1e-6))
             values.insert(L(j), rho)
-            measured = rotation.T @ (rho - truth.translation()) + np.sqrt(np.diag(covariance)) * rng.normal(size=2)
+            measured = rotation.T @ (rho - truth.translation()) + np.sqrt(
+                np.diag(covariance)
+            ) * rng.normal(size=2)
             graph.add(body_point_factor_2d(X(0), L(j), measured, covariance))
         result = gtsam.LevenbergMarquardtOptimizer(graph, values).optimize()
         estimate = result.atPose2(X(0))
         r_est = estimate.rotation().matrix()
-        heading = np.arctan2(np.sin(truth.theta() - estimate.theta()), np.cos(truth.theta() - estimate.theta()))
+        heading = np.arctan2(
+            np.sin(truth.theta() - estimate.theta()), np.cos(truth.theta() - estimate.theta())
+        )
         samples.append(np.r_[r_est.T @ (truth.translation() - estimate.translation()), heading])
         if marginal is None:
             marginal = pose_covariance(gtsam.Marginals(graph, result).marginalCovariance(X(0)))
@@ -83,9 +93,15 @@ def test_pose2_marginal_is_the_interface_x_y_theta_covariance():
 def test_bias_marginal_splits_accelerometer_first():
     graph = gtsam.NonlinearFactorGraph()
     sigmas = bias_prior_sigmas(accel_sigma_m_s2=0.2, gyro_sigma_rad_s=0.003)
-    graph.add(gtsam.PriorFactorConstantBias(B(0), gtsam.imuBias.ConstantBias(), gtsam.noiseModel.Diagonal.Sigmas(sigmas)))
+    graph.add(
+        gtsam.PriorFactorConstantBias(
+            B(0), gtsam.imuBias.ConstantBias(), gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+        )
+    )
     values = gtsam.Values()
-    values.insert(B(0), gtsam.imuBias.ConstantBias(np.array([0.1, 0.0, 0.0]), np.array([0.0, 0.002, 0.0])))
+    values.insert(
+        B(0), gtsam.imuBias.ConstantBias(np.array([0.1, 0.0, 0.0]), np.array([0.0, 0.002, 0.0]))
+    )
     result = gtsam.LevenbergMarquardtOptimizer(graph, values).optimize()
     split = bias_covariances(gtsam.Marginals(graph, result).marginalCovariance(B(0)))
     assert np.allclose(split.accel, np.eye(3) * 0.04)

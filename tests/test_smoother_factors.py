@@ -9,8 +9,16 @@ import numpy as np
 from gtsam.symbol_shorthand import L, V, X
 
 from datasets.rotations import so3_exp
-from smoothers.landmark_factors import body_point_factor_2d, body_point_factor_3d, cartesian_point_factor_3d
-from smoothers.planar_graph import constant_velocity_error, constant_velocity_factor, predict_constant_velocity
+from smoothers.landmark_factors import (
+    body_point_factor_2d,
+    body_point_factor_3d,
+    cartesian_point_factor_3d,
+)
+from smoothers.planar_graph import (
+    constant_velocity_error,
+    constant_velocity_factor,
+    predict_constant_velocity,
+)
 
 
 def _pose3(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, gtsam.Pose3]:
@@ -80,7 +88,9 @@ def test_2d_delta_factor_measures_the_point_in_the_body_frame():
     point = rotation.T @ (rho - pose.translation())
     factor = body_point_factor_2d(X(0), L(0), point + np.array([0.1, 0.0]), np.eye(2))
     assert isinstance(factor, gtsam_unstable.DeltaFactor)
-    assert np.allclose(factor.unwhitenedError(_values(X(0), pose, L(0), rho)), [-0.1, 0.0], atol=1e-12)
+    assert np.allclose(
+        factor.unwhitenedError(_values(X(0), pose, L(0), rho)), [-0.1, 0.0], atol=1e-12
+    )
 
 
 def test_gyro_only_motion_factor_jacobians_match_finite_differences():

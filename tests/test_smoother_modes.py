@@ -37,7 +37,10 @@ def test_isam2_causal_and_smoothed_histories_with_covariances_on_aghili_rover():
             assert history.block(block).covariances is not None
     assert estimate.landmarks.covariances is not None and len(estimate.landmarks) > 3
     # Smoothing uses the future: not worse than the causal estimate, both centimetre-level.
-    assert _position_rmse(estimate.smoothed, sequence) <= _position_rmse(estimate.causal, sequence) * 1.05
+    assert (
+        _position_rmse(estimate.smoothed, sequence)
+        <= _position_rmse(estimate.causal, sequence) * 1.05
+    )
     assert _position_rmse(estimate.smoothed, sequence) < 0.2
     # Association recorded for every measured landmark, by the scans' ids.
     scans = sum(1 for m in sequence.measurements() if m.sensor == "landmarks")
@@ -53,7 +56,11 @@ def test_fixed_lag_backend_marginalises_keys_older_than_latest_minus_lag():
     backend.update(graph, values, {X(0): 0.0}, 0.0)
     for k in range(1, 5):
         graph = gtsam.NonlinearFactorGraph()
-        graph.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), gtsam.Pose2(1, 0, 0), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+        graph.add(
+            gtsam.BetweenFactorPose2(
+                X(k - 1), X(k), gtsam.Pose2(1, 0, 0), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)
+            )
+        )
         values = gtsam.Values()
         values.insert(X(k), gtsam.Pose2(k, 0, 0))
         assert backend.leaving(float(k)) == [X(j) for j in range(k) if (k - 1) - 2.0 <= j < k - 2.0]
@@ -64,7 +71,9 @@ def test_fixed_lag_backend_marginalises_keys_older_than_latest_minus_lag():
 
 def test_fixed_lag_on_aghili_rover_keeps_a_bounded_window_and_exports_everything():
     sequence = load_dataset("sim:aghili-rover", 3, {"duration_s": "6"})
-    estimator, estimate = _run(SmootherFixedLag, SmootherFixedLag.Config(anchors=3, lag_s=1.0), sequence)
+    estimator, estimate = _run(
+        SmootherFixedLag, SmootherFixedLag.Config(anchors=3, lag_s=1.0), sequence
+    )
     window = estimator.backend.estimate()
     poses_in_window = sum(1 for key in window.keys() if chr(gtsam.Symbol(key).chr()) == "x")
     assert poses_in_window <= 12  # 10 Hz keyframes, 1 s lag
@@ -97,7 +106,9 @@ def test_planar_odometry_variant_on_victoria_park():
 
 def test_jcbb_association_without_ids_matches_the_true_landmarks():
     sequence = load_dataset("sim:aghili-rover", 4, {"duration_s": "5", "ids": "false"})
-    _, estimate = _run(SmootherIsam2, SmootherIsam2.Config(anchors=3, causal_covariances=False), sequence)
+    _, estimate = _run(
+        SmootherIsam2, SmootherIsam2.Config(anchors=3, causal_covariances=False), sequence
+    )
     from workbench.metrics.data_association import score_associations
 
     score = score_associations(estimate.diagnostics, sequence.ground_truth.scan_ids)
@@ -125,7 +136,9 @@ def test_3d_relative_pose_odometry_factors_tighten_the_trajectory():
                 pose6 = np.r_[so3_log(relative[:3, :3]), relative[:3, 3]]
                 items.append(Odometry(t=m.t, covariance=np.eye(6) * 1e-4, relative_pose=pose6))
             previous = i
-    with_odometry = replace(sequence, sensors=sequence.sensors | {Sensor.ODOMETRY}, stream=lambda: iter(items))
+    with_odometry = replace(
+        sequence, sensors=sequence.sensors | {Sensor.ODOMETRY}, stream=lambda: iter(items)
+    )
     _, plain = _run(SmootherIsam2, SmootherIsam2.Config(anchors=3), sequence)
     estimator, helped = _run(SmootherIsam2, SmootherIsam2.Config(anchors=3), with_odometry)
     assert estimator.odometry_3d is not None

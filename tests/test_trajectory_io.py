@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from datasets.errors import InputError
 from datasets.rotations import quat_wxyz_from_rotation
 from datasets.trajectory import Trajectory
 from datasets.trajectory_io import read_kitti, read_tum, write_kitti, write_tum
-from scipy.spatial.transform import Rotation
 
 
 def random_trajectory(seed: int, count: int = 20, dimension: int = 3) -> Trajectory:
@@ -35,7 +35,9 @@ def test_planar_trajectory_written_as_rotation_about_z(tmp_path):
     trajectory = random_trajectory(2, dimension=2)
     loaded = read_tum(write_tum(tmp_path / "p.tum", trajectory))
     assert np.allclose(loaded.positions[:, 2], 0.0)
-    assert np.allclose(loaded.rotation_matrices()[:, :2, :2], trajectory.rotation_matrices(), atol=1e-8)
+    assert np.allclose(
+        loaded.rotation_matrices()[:, :2, :2], trajectory.rotation_matrices(), atol=1e-8
+    )
 
 
 def test_kitti_round_trip(tmp_path):

@@ -24,7 +24,9 @@ from datasets.utias import (
 )
 
 UTIAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"
-needs_data = pytest.mark.skipif(not UTIAS.is_dir(), reason=f"UTIAS MRCLAM data absent (expected at {UTIAS})")
+needs_data = pytest.mark.skipif(
+    not UTIAS.is_dir(), reason=f"UTIAS MRCLAM data absent (expected at {UTIAS})"
+)
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +39,9 @@ def robot1():
 
 # ---------------------------------------------------------------- pure helpers
 def test_grid_times_accept_rounded_printing_and_reject_irregular_rows() -> None:
-    printed = np.array([999.96, 999.98, 1000.0, 1000.0, 1000.0, 1000.1, 1000.1, 1000.1, 1000.1, 1000.1, 1000.2])
+    printed = np.array(
+        [999.96, 999.98, 1000.0, 1000.0, 1000.0, 1000.1, 1000.1, 1000.1, 1000.1, 1000.1, 1000.2]
+    )
     recovered = grid_times(printed, 0.02)
     assert recovered is not None
     np.testing.assert_allclose(np.diff(recovered), 0.02)
@@ -45,7 +49,9 @@ def test_grid_times_accept_rounded_printing_and_reject_irregular_rows() -> None:
 
 
 def test_heading_glitch_runs_are_replaced_by_the_short_way_round() -> None:
-    heading = np.array([3.12, 3.13, 3.14, -1.72, 2.33, 3.138, -3.14, -3.13])  # a 2-sample glitch, then a real wrap
+    heading = np.array(
+        [3.12, 3.13, 3.14, -1.72, 2.33, 3.138, -3.14, -3.13]
+    )  # a 2-sample glitch, then a real wrap
     repaired, count = repair_heading_glitches(heading, 0.02, 3.0)
     assert count == 2
     assert np.all(np.abs(wrap_angle(np.diff(repaired))) < 0.05)
@@ -58,7 +64,9 @@ def test_range_bearing_covariance_matches_monte_carlo() -> None:
     points, cov = range_bearing_to_points(np.array([r]), np.array([b]), np.array([sr]), sb)
     np.testing.assert_allclose(points[0], [r * np.cos(b), r * np.sin(b)])
     samples = rng.normal([r, b], [sr, sb], size=(200_000, 2))
-    cloud = np.stack([samples[:, 0] * np.cos(samples[:, 1]), samples[:, 0] * np.sin(samples[:, 1])], -1)
+    cloud = np.stack(
+        [samples[:, 0] * np.cos(samples[:, 1]), samples[:, 0] * np.sin(samples[:, 1])], -1
+    )
     np.testing.assert_allclose(np.cov(cloud.T), cov[0], rtol=0.02, atol=1e-7)
 
 
@@ -70,7 +78,9 @@ def test_robot1_stream_times_and_kinds(robot1) -> None:
     gyro_t = np.array([m.t for m in stream if isinstance(m, GyroSample)])
     odometry = [m for m in stream if isinstance(m, Odometry)]
     assert len(gyro_t) == len(odometry) == 75000
-    np.testing.assert_allclose(np.diff(gyro_t), 0.02, atol=1e-9)  # also after 1000 s, where the file rounds to 0.1 s
+    np.testing.assert_allclose(
+        np.diff(gyro_t), 0.02, atol=1e-9
+    )  # also after 1000 s, where the file rounds to 0.1 s
     assert all(m.velocity is not None and m.velocity.shape == (2,) for m in odometry[:100])
     times = np.array([m.t for m in stream])
     assert np.all(np.diff(times) >= 0)
@@ -118,7 +128,9 @@ def _mean_world_sighting(sequence, stream, barcode: int) -> np.ndarray:
 def test_swapped_labels_18_and_61_are_fixed_by_default(robot1) -> None:
     sequence, stream = robot1
     fixed = sequence.ground_truth.landmarks
-    as_filed = load(f"{UTIAS}#robot1", 0, {"fix_swapped_labels": "false", "duration_s": "10"}).ground_truth.landmarks
+    as_filed = load(
+        f"{UTIAS}#robot1", 0, {"fix_swapped_labels": "false", "duration_s": "10"}
+    ).ground_truth.landmarks
     for barcode in (18, 61):
         seen = _mean_world_sighting(sequence, stream, barcode)
         assert np.linalg.norm(fixed.positions[list(fixed.ids).index(barcode)] - seen) < 0.1
@@ -145,10 +157,16 @@ def test_ids_can_be_withheld_and_options_checked() -> None:
 
 
 # ---------------------------------------------------------------- small synthetic folders
-def write_folder(folder: Path, odometry: list[str], measurements: list[str], truth: list[str] | None = None) -> Path:
+def write_folder(
+    folder: Path, odometry: list[str], measurements: list[str], truth: list[str] | None = None
+) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "Barcodes.dat").write_text("# Subject # Barcode #\n1 5\n2 14\n3 41\n4 32\n5 23\n6 72\n7 27\n")
-    (folder / "Landmark_Groundtruth.dat").write_text("# s x y sx sy\n6 1.0 2.0 0.001 0.001\n7 3.0 -1.0 0.001 0.001\n")
+    (folder / "Barcodes.dat").write_text(
+        "# Subject # Barcode #\n1 5\n2 14\n3 41\n4 32\n5 23\n6 72\n7 27\n"
+    )
+    (folder / "Landmark_Groundtruth.dat").write_text(
+        "# s x y sx sy\n6 1.0 2.0 0.001 0.001\n7 3.0 -1.0 0.001 0.001\n"
+    )
     (folder / "Robot1_Odometry.dat").write_text("\n".join(odometry) + "\n")
     (folder / "Robot1_Measurement.dat").write_text("\n".join(measurements) + "\n")
     truth = truth or [f"{line.split()[0]} 0.0 0.0 0.0" for line in odometry]
@@ -161,7 +179,11 @@ def grid_odometry(rows: int) -> list[str]:
 
 
 def test_truncated_measurement_file_names_file_and_line(tmp_path: Path) -> None:
-    folder = write_folder(tmp_path / "d", grid_odometry(50), ["# time barcode range bearing", "0.1 72 2.0 0.1", "0.2 27 3.0"])
+    folder = write_folder(
+        tmp_path / "d",
+        grid_odometry(50),
+        ["# time barcode range bearing", "0.1 72 2.0 0.1", "0.2 27 3.0"],
+    )
     with pytest.raises(InputError, match=r"Robot1_Measurement\.dat:3: expected 4 columns"):
         load_mrclam(folder, 1, UtiasOptions())
 
@@ -174,7 +196,9 @@ def test_malformed_number_names_file_and_line(tmp_path: Path) -> None:
         load_mrclam(folder, 1, UtiasOptions())
 
 
-def test_unknown_robot_duplicate_and_out_of_range_sightings_are_dropped_and_counted(tmp_path: Path) -> None:
+def test_unknown_robot_duplicate_and_out_of_range_sightings_are_dropped_and_counted(
+    tmp_path: Path,
+) -> None:
     sightings = [
         "0.10 72 2.0 0.1",
         "0.10 72 2.1 0.1",  # same barcode twice at one time
@@ -203,7 +227,11 @@ def test_unknown_robot_duplicate_and_out_of_range_sightings_are_dropped_and_coun
 def test_irregular_printed_times_gap_and_duplicate_rows(tmp_path: Path) -> None:
     # an original (not resampled) MRCLAM log: unix-like times, a duplicate row, a 2 s gap
     base = 1248272272.0
-    times = [base + 0.015 * i for i in range(20)] + [base + 0.015 * 19] + [base + 2.5 + 0.015 * i for i in range(10)]
+    times = (
+        [base + 0.015 * i for i in range(20)]
+        + [base + 0.015 * 19]
+        + [base + 2.5 + 0.015 * i for i in range(10)]
+    )
     odometry = [f"{t:.3f} 0.2 0.1" for t in times]
     folder = write_folder(tmp_path / "d", odometry, [f"{base + 0.1:.3f} 72 2.0 0.1"])
     sequence = load_mrclam(folder, 1, UtiasOptions())

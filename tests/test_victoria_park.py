@@ -24,7 +24,12 @@ def full():
 def test_file_contents_as_documented(full) -> None:
     sequence, stream = full
     meta = sequence.metadata
-    assert (meta["steps"], meta["sightings"], meta["landmarks"], meta["scans"]) == (6968, 3640, 151, 3331)
+    assert (meta["steps"], meta["sightings"], meta["landmarks"], meta["scans"]) == (
+        6968,
+        3640,
+        151,
+        3331,
+    )
     assert meta["landmarks_seen_once"] == 28
     assert 3900 < meta["path_length_m"] < 4100
     assert sequence.ground_truth.pose is None and sequence.ground_truth.landmarks is None
@@ -77,7 +82,14 @@ GOOD_ODOMETRY = "ODOMETRY 0 1 0.5 0 0.01 0.0001 0 0 4e-06 0 4e-06"
 
 
 def test_truncated_line_names_file_and_line(tmp_path: Path) -> None:
-    path = write(tmp_path, [GOOD_ODOMETRY, "LANDMARK 1 2 10.0 -3.0 0.4 0", "ODOMETRY 1 3 0.5 0 0.01 0.0001 0 0 4e-06 0 4e-06"])
+    path = write(
+        tmp_path,
+        [
+            GOOD_ODOMETRY,
+            "LANDMARK 1 2 10.0 -3.0 0.4 0",
+            "ODOMETRY 1 3 0.5 0 0.01 0.0001 0 0 4e-06 0 4e-06",
+        ],
+    )
     with pytest.raises(InputError, match=r"vp\.txt:2: LANDMARK needs 7 fields"):
         read_file(path)
 
@@ -87,10 +99,14 @@ def test_malformed_number_unknown_tag_and_broken_chain(tmp_path: Path) -> None:
         read_file(write(tmp_path, ["ODOMETRY 0 1 0.5 0 zero 0.0001 0 0 4e-06 0 4e-06"]))
     with pytest.raises(InputError, match=r"vp\.txt:2: unknown tag 'POSE'"):
         read_file(write(tmp_path, [GOOD_ODOMETRY, "POSE 1 0 0 0"]))
-    with pytest.raises(InputError, match=r"vp\.txt:2: landmark seen from pose 0 but the last pose is 1"):
+    with pytest.raises(
+        InputError, match=r"vp\.txt:2: landmark seen from pose 0 but the last pose is 1"
+    ):
         read_file(write(tmp_path, [GOOD_ODOMETRY, "LANDMARK 0 2 10.0 -3.0 0.4 0 0.4"]))
     with pytest.raises(InputError, match=r"vp\.txt:2: odometry starts from pose 5"):
-        read_file(write(tmp_path, [GOOD_ODOMETRY, "ODOMETRY 5 6 0.5 0 0.01 0.0001 0 0 4e-06 0 4e-06"]))
+        read_file(
+            write(tmp_path, [GOOD_ODOMETRY, "ODOMETRY 5 6 0.5 0 0.01 0.0001 0 0 4e-06 0 4e-06"])
+        )
     with pytest.raises(InputError, match="not positive definite"):
         read_file(write(tmp_path, ["ODOMETRY 0 1 0.5 0 0.01 0.0001 0 0 0 0 4e-06"]))
 
@@ -109,7 +125,14 @@ def test_small_file_round_trip(tmp_path: Path) -> None:
     sequence = load_file(path, VictoriaParkOptions(step_s=0.5))
     stream = list(sequence.measurements())
     kinds = [type(m).__name__ for m in stream]
-    assert kinds == ["GyroSample", "Odometry", "LandmarkScan", "GyroSample", "Odometry", "LandmarkScan"]
+    assert kinds == [
+        "GyroSample",
+        "Odometry",
+        "LandmarkScan",
+        "GyroSample",
+        "Odometry",
+        "LandmarkScan",
+    ]
     first = stream[2]
     assert first.t == 0.5 and list(first.ids) == [2, 3]
     np.testing.assert_allclose(first.covariances[0], [[0.4, 0.1], [0.1, 0.5]])
@@ -131,5 +154,7 @@ def test_ekf_slam_on_the_first_1000_steps_with_ids() -> None:
     seen = {int(i) for _, ids in sequence.ground_truth.scan_ids for i in ids}
     assert len(estimate.landmarks) == len(seen)
     nis = estimate.diagnostics.nis
-    assert len(nis) > 100 and 0.1 < nis.mean() < 2.0  # 2 dof; the file's 0.4 m^2 is generous (GTSAM says so too)
+    assert (
+        len(nis) > 100 and 0.1 < nis.mean() < 2.0
+    )  # 2 dof; the file's 0.4 m^2 is generous (GTSAM says so too)
     assert estimate.causal.pose.t[-1] == pytest.approx(1000 * 0.2)

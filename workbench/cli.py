@@ -11,7 +11,7 @@ import os
 import sys
 import traceback
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from typer.exceptions import TyperException
@@ -35,23 +35,35 @@ COMMAND_MODULES: tuple[str, ...] = (
     "workbench.commands.observability",
 )
 
-SetOption = Annotated[Optional[list[str]], typer.Option("--set", help="estimator option key=value (repeatable)")]
-DataOption = Annotated[Optional[list[str]], typer.Option("--data", help="dataset option key=value (repeatable)")]
+SetOption = Annotated[
+    list[str] | None, typer.Option("--set", help="estimator option key=value (repeatable)")
+]
+DataOption = Annotated[
+    list[str] | None, typer.Option("--data", help="dataset option key=value (repeatable)")
+]
 
 
 @app.command("list")
-def list_command(verbose: Annotated[bool, typer.Option("--verbose", "-v", help="options of each dataset")] = False) -> None:
+def list_command(
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="options of each dataset")
+    ] = False,
+) -> None:
     """List datasets and estimators, one line each."""
     typer.echo("datasets:")
     for entry in DATASETS:
-        names = entry.examples or ((entry.prefix + (f":{entry.argument}" if entry.argument else "")),)
+        names = entry.examples or (
+            (entry.prefix + (f":{entry.argument}" if entry.argument else "")),
+        )
         for name in names:
             typer.echo(f"  {name:<42} {entry.summary}")
         if verbose:
             for line in entry.describe():
                 typer.echo(f"      {line}")
     typer.echo("simulate-only scenarios (workbench simulate NAME):")
-    typer.echo(f"  {'lidar-corridor':<42} synthetic lidar bag (ROS 1/ROS 2) of a corridor world, read back as bag:PATH")
+    typer.echo(
+        f"  {'lidar-corridor':<42} synthetic lidar bag (ROS 1/ROS 2) of a corridor world, read back as bag:PATH"
+    )
     if verbose:
         from datasets.synthetic_lidar import describe as describe_lidar_corridor
 
@@ -69,11 +81,15 @@ def list_command(verbose: Annotated[bool, typer.Option("--verbose", "-v", help="
 
 @app.command("simulate")
 def simulate_command(
-    scenario: Annotated[str, typer.Argument(help="scenario name, e.g. aghili-rover (see `workbench list`)")],
+    scenario: Annotated[
+        str, typer.Argument(help="scenario name, e.g. aghili-rover (see `workbench list`)")
+    ],
     out: Annotated[Path, typer.Option("--out", help="output folder (bag path for lidar-corridor)")],
     seed: Annotated[int, typer.Option("--seed", help="random seed")] = 0,
     data: DataOption = None,
-    format: Annotated[str, typer.Option("--format", help="lidar-corridor only: ros1 or ros2")] = "ros1",
+    format: Annotated[
+        str, typer.Option("--format", help="lidar-corridor only: ros1 or ros2")
+    ] = "ros1",
 ) -> None:
     """Simulate a scenario and write its measurements and ground truth."""
     options = parse_assignments(data or [], "--data")
@@ -95,7 +111,9 @@ def run_command(
     dataset: Annotated[str, typer.Argument(help="dataset name, e.g. sim:aghili-rover")],
     out: Annotated[Path, typer.Option("--out", help="run folder to write")],
     seed: Annotated[int, typer.Option("--seed", help="random seed of the dataset")] = 0,
-    config: Annotated[Optional[Path], typer.Option("--config", help="estimator options as YAML")] = None,
+    config: Annotated[
+        Path | None, typer.Option("--config", help="estimator options as YAML")
+    ] = None,
     set_: SetOption = None,
     data: DataOption = None,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write figures")] = True,
@@ -115,8 +133,12 @@ def run_command(
         data_options=tuple(parse_assignments(data or [], "--data").items()),
     )
     with Progress(
-        TextColumn("{task.description}"), BarColumn(), TextColumn("t={task.completed:.1f} s"), TimeElapsedColumn(),
-        transient=True, disable=not sys.stderr.isatty(),
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("t={task.completed:.1f} s"),
+        TimeElapsedColumn(),
+        transient=True,
+        disable=not sys.stderr.isatty(),
     ) as progress:
         task = progress.add_task(f"{estimator} on {dataset}", total=None)
         result = execute(request, on_step=lambda t: progress.update(task, completed=t))
@@ -156,7 +178,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as error:  # noqa: BLE001 - the CLI never shows a bare traceback
         if os.environ.get("WORKBENCH_DEBUG"):
             traceback.print_exc()
-        print(f"error: internal error: {type(error).__name__}: {error} (WORKBENCH_DEBUG=1 shows the traceback)", file=sys.stderr)
+        print(
+            f"error: internal error: {type(error).__name__}: {error} (WORKBENCH_DEBUG=1 shows the traceback)",
+            file=sys.stderr,
+        )
         return 1
     return 0
 

@@ -130,14 +130,20 @@ def error_series(estimate: Estimate, sequence: Sequence) -> dict[str, ErrorSerie
         pose_found = pose_error_series(pose, truth)
         if pose_found is not None and len(pose_found[0]):
             t, errors, valid = pose_found
-            found["pose"] = ErrorSeries(t, errors, np.sqrt(np.maximum(np.diagonal(pose.covariances[valid], axis1=1, axis2=2), 0.0)))
+            found["pose"] = ErrorSeries(
+                t,
+                errors,
+                np.sqrt(np.maximum(np.diagonal(pose.covariances[valid], axis1=1, axis2=2), 0.0)),
+            )
     for name, block in estimate.causal.blocks.items():
         if block.covariances is None:
             continue
         block_found = block_error_series(name, block, truth)
         if block_found is not None and len(block_found[0]):
             t, errors, valid = block_found
-            sigmas = np.sqrt(np.maximum(np.diagonal(block.covariances[valid], axis1=1, axis2=2), 0.0))
+            sigmas = np.sqrt(
+                np.maximum(np.diagonal(block.covariances[valid], axis1=1, axis2=2), 0.0)
+            )
             found[str(name)] = ErrorSeries(t, errors, sigmas)
     return found
 
@@ -148,9 +154,22 @@ def save_run_nees(estimate: Estimate, sequence: Sequence, path: Path) -> None:
     as one npz."""
     arrays: dict[str, np.ndarray] = {}
     for block, values in run_nees(estimate, sequence).items():
-        arrays.update({f"{block}_t": values.t, f"{block}_nees": values.nees, f"{block}_dof": values.dof, f"{block}_units": values.units})
+        arrays.update(
+            {
+                f"{block}_t": values.t,
+                f"{block}_nees": values.nees,
+                f"{block}_dof": values.dof,
+                f"{block}_units": values.units,
+            }
+        )
     for block, series in error_series(estimate, sequence).items():
-        arrays.update({f"errors_{block}_t": series.t, f"errors_{block}": series.errors, f"errors_{block}_sigma": series.sigmas})
+        arrays.update(
+            {
+                f"errors_{block}_t": series.t,
+                f"errors_{block}": series.errors,
+                f"errors_{block}_sigma": series.sigmas,
+            }
+        )
     save_npz_atomic(Path(path), arrays)
 
 
@@ -158,7 +177,12 @@ def load_run_nees(path: Path) -> dict[str, RunNees]:
     """Read a file written by ``save_run_nees``."""
     with np.load(Path(path)) as data:
         return {
-            block: RunNees(data[f"{block}_t"], data[f"{block}_nees"], data[f"{block}_dof"], data[f"{block}_units"])
+            block: RunNees(
+                data[f"{block}_t"],
+                data[f"{block}_nees"],
+                data[f"{block}_dof"],
+                data[f"{block}_units"],
+            )
             for block in BLOCKS
             if f"{block}_t" in data
         }
@@ -167,8 +191,17 @@ def load_run_nees(path: Path) -> dict[str, RunNees]:
 def load_error_series(path: Path) -> dict[str, ErrorSeries]:
     """The error series of a file written by ``save_run_nees``."""
     with np.load(Path(path)) as data:
-        blocks = [key[len("errors_") : -len("_t")] for key in data.files if key.startswith("errors_") and key.endswith("_t")]
-        return {block: ErrorSeries(data[f"errors_{block}_t"], data[f"errors_{block}"], data[f"errors_{block}_sigma"]) for block in blocks}
+        blocks = [
+            key[len("errors_") : -len("_t")]
+            for key in data.files
+            if key.startswith("errors_") and key.endswith("_t")
+        ]
+        return {
+            block: ErrorSeries(
+                data[f"errors_{block}_t"], data[f"errors_{block}"], data[f"errors_{block}_sigma"]
+            )
+            for block in blocks
+        }
 
 
 @dataclass(frozen=True)

@@ -30,13 +30,25 @@ def save_figure(figure: plt.Figure, path_without_suffix: Path) -> list[Path]:
     return written
 
 
-def trajectory_on_axes(axes: plt.Axes, trajectories: dict[str, Trajectory], landmarks: dict[str, np.ndarray] | None = None) -> None:
+def trajectory_on_axes(
+    axes: plt.Axes,
+    trajectories: dict[str, Trajectory],
+    landmarks: dict[str, np.ndarray] | None = None,
+) -> None:
     """Top view (x, y) of named trajectories and optional named landmark sets (k, >=2)."""
     for label, trajectory in trajectories.items():
-        axes.plot(trajectory.positions[:, 0], trajectory.positions[:, 1], label=label, linewidth=1.2)
+        axes.plot(
+            trajectory.positions[:, 0], trajectory.positions[:, 1], label=label, linewidth=1.2
+        )
     for label, points in (landmarks or {}).items():
         if len(points):
-            axes.scatter(points[:, 0], points[:, 1], s=12, marker="x" if "true" in label else "o", label=label)
+            axes.scatter(
+                points[:, 0],
+                points[:, 1],
+                s=12,
+                marker="x" if "true" in label else "o",
+                label=label,
+            )
     axes.set_xlabel("x [m]")
     axes.set_ylabel("y [m]")
     axes.set_aspect("equal", adjustable="datalim")
@@ -51,9 +63,23 @@ def block_on_axes(axes: np.ndarray, block: StateBlock, truth: StateBlock | None,
         ax.plot(block.t, values, color="C3", linewidth=1.0, label="estimate")
         if block.covariances is not None:
             sigma = np.sqrt(np.maximum(block.covariances[:, component, component], 0.0))
-            ax.fill_between(block.t, values - 3 * sigma, values + 3 * sigma, color="C3", alpha=0.2, label="+/-3 sigma")
+            ax.fill_between(
+                block.t,
+                values - 3 * sigma,
+                values + 3 * sigma,
+                color="C3",
+                alpha=0.2,
+                label="+/-3 sigma",
+            )
         if truth is not None and truth.values.shape[1] > component:
-            ax.plot(truth.t, truth.values[:, component], color="k", linewidth=0.8, linestyle="--", label="truth")
+            ax.plot(
+                truth.t,
+                truth.values[:, component],
+                color="k",
+                linewidth=0.8,
+                linestyle="--",
+                label="truth",
+            )
         ax.set_ylabel(f"[{component}] [{unit}]")
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8)
@@ -64,7 +90,13 @@ def nis_on_axes(axes: plt.Axes, times: np.ndarray, nis: np.ndarray, dof: np.ndar
     """NIS per innovation with the one-sided 95% chi-square threshold of its dof."""
     axes.plot(times, nis, ".", markersize=2, color="C0", label="NIS")
     for value in np.unique(dof):
-        axes.axhline(chi2.ppf(0.95, value), color="k", linestyle="-.", linewidth=0.8, label=f"95% bound, dof {value}")
+        axes.axhline(
+            chi2.ppf(0.95, value),
+            color="k",
+            linestyle="-.",
+            linewidth=0.8,
+            label=f"95% bound, dof {value}",
+        )
     axes.set_xlabel("t [s]")
     axes.set_ylabel("NIS")
     axes.set_yscale("log")
@@ -72,10 +104,16 @@ def nis_on_axes(axes: plt.Axes, times: np.ndarray, nis: np.ndarray, dof: np.ndar
     axes.legend(fontsize=8)
 
 
-_BLOCK_UNITS = {BlockName.VELOCITY: "m/s", BlockName.GYRO_BIAS: "rad/s", BlockName.ACCEL_BIAS: "m/s^2"}
+_BLOCK_UNITS = {
+    BlockName.VELOCITY: "m/s",
+    BlockName.GYRO_BIAS: "rad/s",
+    BlockName.ACCEL_BIAS: "m/s^2",
+}
 
 
-def write_run_plots(estimate: Estimate, sequence: Sequence, out_dir: Path, title: str) -> list[Path]:
+def write_run_plots(
+    estimate: Estimate, sequence: Sequence, out_dir: Path, title: str
+) -> list[Path]:
     """The standard figures of a run folder: trajectory, state blocks with 3 sigma, NIS,
     landmark count. Returns the files written."""
     written: list[Path] = []
@@ -100,9 +138,19 @@ def write_run_plots(estimate: Estimate, sequence: Sequence, out_dir: Path, title
     for name, block in estimate.causal.blocks.items():
         truth_block = None
         if truth is not None:
-            candidate = truth.body_velocity if (name == BlockName.VELOCITY and block.frame == "body") else truth.history.block(name)
+            candidate = (
+                truth.body_velocity
+                if (name == BlockName.VELOCITY and block.frame == "body")
+                else truth.history.block(name)
+            )
             truth_block = candidate
-        figure, axes = plt.subplots(block.values.shape[1], 1, figsize=(7, 2 * block.values.shape[1]), sharex=True, squeeze=False)
+        figure, axes = plt.subplots(
+            block.values.shape[1],
+            1,
+            figsize=(7, 2 * block.values.shape[1]),
+            sharex=True,
+            squeeze=False,
+        )
         block_on_axes(axes[:, 0], block, truth_block, _BLOCK_UNITS.get(name, ""))
         axes[0, 0].set_title(f"{title}: {name} ({block.frame} frame)")
         written += save_figure(figure, out_dir / f"{name}")

@@ -173,7 +173,9 @@ def dataset_entry(name: str) -> DatasetEntry:
             if entry.argument is None and argument:
                 raise InputError(f"dataset '{prefix}' takes no argument (got '{name}')")
             return entry
-    known = ", ".join(entry.prefix + (f":{entry.argument}" if entry.argument else "") for entry in DATASETS)
+    known = ", ".join(
+        entry.prefix + (f":{entry.argument}" if entry.argument else "") for entry in DATASETS
+    )
     raise InputError(f"unknown dataset '{name}' (known: {known})")
 
 

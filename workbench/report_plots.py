@@ -43,7 +43,6 @@ NEES_BLOCK_TITLES = {
 }
 
 
-
 def is_smoother(estimator_name: str) -> bool:
     """Whether the registered estimator lives in ``smoothers/`` (by its registry target)."""
     return estimator_entry(estimator_name).target.startswith("smoothers.")
@@ -85,14 +84,22 @@ def _legend_outside(axes: plt.Axes) -> None:
     axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
 
 
-def errors_on_axes(axes: plt.Axes, series: ErrorSeries, components: tuple[int, ...], names: tuple[str, ...], scale: float = 1.0) -> None:
+def errors_on_axes(
+    axes: plt.Axes,
+    series: ErrorSeries,
+    components: tuple[int, ...],
+    names: tuple[str, ...],
+    scale: float = 1.0,
+) -> None:
     """Several error components on one axes, each with its +/-3 sigma envelope in the same
     colour (values multiplied by ``scale``, e.g. rad -> deg)."""
     for index, (component, name) in enumerate(zip(components, names)):
         color = f"C{index}"
         sigma = 3.0 * scale * series.sigmas[:, component]
         axes.fill_between(series.t, -sigma, sigma, color=color, alpha=0.15, linewidth=0)
-        axes.plot(series.t, scale * series.errors[:, component], color=color, linewidth=0.8, label=name)
+        axes.plot(
+            series.t, scale * series.errors[:, component], color=color, linewidth=0.8, label=name
+        )
     axes.grid(True, alpha=0.3)
     axes.legend(fontsize=7, loc="upper right", ncol=len(components))
 
@@ -118,7 +125,16 @@ def anees_on_axes(axes: plt.Axes, curves: dict[str, tuple[AveragedSeries, str]])
     for index, (label, (series, style)) in enumerate(curves.items()):
         color = f"C{index % 10}"
         marker = "o" if len(series.t) < 3 else None
-        axes.plot(series.t, series.mean, style, color=color, linewidth=1.0, marker=marker, markersize=4, label=f"{label} ({series.runs} runs)")
+        axes.plot(
+            series.t,
+            series.mean,
+            style,
+            color=color,
+            linewidth=1.0,
+            marker=marker,
+            markersize=4,
+            label=f"{label} ({series.runs} runs)",
+        )
         if not shared:
             axes.plot(series.t, series.lower, ":", color=color, linewidth=0.8)
             axes.plot(series.t, series.upper, ":", color=color, linewidth=0.8)
@@ -172,7 +188,11 @@ def time_vs_landmarks_on_axes(axes: plt.Axes, runs: dict[str, tuple[list[RunSeri
 
 
 def _trajectory_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
-    panels = [pair for pair in pairs if pair.finished and (pair.finished[0].folder / "estimate.tum").is_file()]
+    panels = [
+        pair
+        for pair in pairs
+        if pair.finished and (pair.finished[0].folder / "estimate.tum").is_file()
+    ]
     if not panels:
         return []
     columns = min(3, len(panels))
@@ -188,7 +208,7 @@ def _trajectory_figure(pairs: list[PairResults], title: str, out: Path) -> list[
             trajectories["smoothed"] = read_tum(folder / "estimate_smoothed.tum")
         trajectory_on_axes(ax, trajectories)
         ax.set_title(f"{pair.estimator.title} (seed {pair.finished[0].seed})", fontsize=9)
-    for ax in axes.ravel()[len(panels):]:
+    for ax in axes.ravel()[len(panels) :]:
         ax.set_visible(False)
     figure.suptitle(title)
     return save_figure(figure, out / "trajectories")
@@ -201,7 +221,9 @@ def _error_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]
     found = [(pair, series) for pair, series in found if series is not None]
     if not found:
         return []
-    figure, axes = plt.subplots(len(found), 2, figsize=(10, 2.2 * len(found) + 0.6), sharex=True, squeeze=False)
+    figure, axes = plt.subplots(
+        len(found), 2, figsize=(10, 2.2 * len(found) + 0.6), sharex=True, squeeze=False
+    )
     for row, (pair, series) in enumerate(found):
         if series.errors.shape[1] == 6:  # 3-D: [rotation (body), translation (body)]
             errors_on_axes(axes[row, 0], series, (0, 1, 2), ("x", "y", "z"), np.rad2deg(1.0))
@@ -214,17 +236,25 @@ def _error_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]
         axes[row, 1].set_ylabel("position (body) [m]", fontsize=8)
     axes[-1, 0].set_xlabel("t [s]")
     axes[-1, 1].set_xlabel("t [s]")
-    figure.suptitle(f"{title}: pose errors (truth - estimate) with +/-3 sigma, first seed", fontsize=10)
+    figure.suptitle(
+        f"{title}: pose errors (truth - estimate) with +/-3 sigma, first seed", fontsize=10
+    )
     return save_figure(figure, out / "pose_errors")
 
 
 def _anees_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
-    blocks = [block for block in NEES_BLOCK_TITLES if any(block in pair.averaged_nees for pair in pairs)]
+    blocks = [
+        block for block in NEES_BLOCK_TITLES if any(block in pair.averaged_nees for pair in pairs)
+    ]
     if not blocks:
         return []
     figure, axes = plt.subplots(len(blocks), 1, figsize=(9, 2.8 * len(blocks)), squeeze=False)
     for ax, block in zip(axes[:, 0], blocks):
-        curves = {pair.estimator.title: (pair.averaged_nees[block], _line_style(pair)) for pair in pairs if block in pair.averaged_nees}
+        curves = {
+            pair.estimator.title: (pair.averaged_nees[block], _line_style(pair))
+            for pair in pairs
+            if block in pair.averaged_nees
+        }
         anees_on_axes(ax, curves)
         ax.set_title(f"{title}: averaged NEES, {NEES_BLOCK_TITLES[block]}, 95% band", fontsize=9)
     return save_figure(figure, out / "anees")
@@ -234,16 +264,24 @@ def _nis_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
     panels = [pair for pair in pairs if pair.series and len(pair.series[0].nis)]
     if not panels:
         return []
-    figure, axes = plt.subplots(len(panels), 1, figsize=(7.5, 2.6 * len(panels)), sharex=True, squeeze=False)
+    figure, axes = plt.subplots(
+        len(panels), 1, figsize=(7.5, 2.6 * len(panels)), sharex=True, squeeze=False
+    )
     for ax, pair in zip(axes[:, 0], panels):
         series = pair.series[0]
         nis_on_axes(ax, series.nis_t, series.nis, series.nis_dof)
-        ax.set_title(f"{title}: {pair.estimator.title} NIS, seed {pair.finished[0].seed}", fontsize=9)
+        ax.set_title(
+            f"{title}: {pair.estimator.title} NIS, seed {pair.finished[0].seed}", fontsize=9
+        )
     return save_figure(figure, out / "nis")
 
 
 def _landmark_count_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
-    counts = {pair.estimator.title: (pair.series[0], _line_style(pair)) for pair in pairs if pair.series and len(pair.series[0].count)}
+    counts = {
+        pair.estimator.title: (pair.series[0], _line_style(pair))
+        for pair in pairs
+        if pair.series and len(pair.series[0].count)
+    }
     if not counts:
         return []
     figure, axes = plt.subplots(figsize=(9, 3.2))
@@ -253,12 +291,18 @@ def _landmark_count_figure(pairs: list[PairResults], title: str, out: Path) -> l
 
 
 def _time_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
-    runs = {pair.estimator.title: (list(pair.series), _line_style(pair)) for pair in pairs if pair.series and any(len(s.timing_t) for s in pair.series)}
+    runs = {
+        pair.estimator.title: (list(pair.series), _line_style(pair))
+        for pair in pairs
+        if pair.series and any(len(s.timing_t) for s in pair.series)
+    }
     if not runs:
         return []
     figure, axes = plt.subplots(figsize=(9, 3.6))
     time_vs_landmarks_on_axes(axes, runs)
-    axes.set_title(f"{title}: time per step vs landmarks (filters solid, smoothers dashed)", fontsize=9)
+    axes.set_title(
+        f"{title}: time per step vs landmarks (filters solid, smoothers dashed)", fontsize=9
+    )
     return save_figure(figure, out / "time_vs_landmarks")
 
 
@@ -268,6 +312,13 @@ def write_dataset_plots(plan: Plan, dataset: DatasetSpec) -> list[Path]:
     out = plan.out / "plots" / dataset.folder_name
     title = dataset.title
     written: list[Path] = []
-    for figure_writer in (_trajectory_figure, _error_figure, _anees_figure, _nis_figure, _landmark_count_figure, _time_figure):
+    for figure_writer in (
+        _trajectory_figure,
+        _error_figure,
+        _anees_figure,
+        _nis_figure,
+        _landmark_count_figure,
+        _time_figure,
+    ):
         written += figure_writer(pairs, title, out)
     return written

@@ -10,7 +10,16 @@ from typing import Any
 
 import numpy as np
 
-from workbench.monte_carlo import BLOCKS, NEES_FILE, AveragedSeries, ErrorSeries, RunNees, average_runs, load_error_series, load_run_nees
+from workbench.monte_carlo import (
+    BLOCKS,
+    NEES_FILE,
+    AveragedSeries,
+    ErrorSeries,
+    RunNees,
+    average_runs,
+    load_error_series,
+    load_run_nees,
+)
 from workbench.suites import DatasetSpec, EstimatorSpec
 from workbench.sweep import ERROR_FILE, METRICS_FILE, Cell, Plan
 
@@ -40,6 +49,7 @@ def read_run_series(folder: Path) -> RunSeries:
     """The per-step arrays of the run folder ``folder``."""
     empty = np.zeros(0)
     with np.load(Path(folder) / "estimate.npz") as data:
+
         def get(key: str) -> np.ndarray:
             return data[key] if key in data.files else empty
 
@@ -49,8 +59,14 @@ def read_run_series(folder: Path) -> RunSeries:
         else:
             final = int(count[-1]) if len(count) else None
         return RunSeries(
-            get("timing_t"), get("timing_seconds"), get("diag_landmark_count_t"), count,
-            get("diag_nis_t"), get("diag_nis"), get("diag_nis_dof"), final,
+            get("timing_t"),
+            get("timing_seconds"),
+            get("diag_landmark_count_t"),
+            count,
+            get("diag_nis_t"),
+            get("diag_nis"),
+            get("diag_nis_dof"),
+            final,
         )
 
 
@@ -81,13 +97,21 @@ class PairResults:
         found = []
         for metrics in self.metrics:
             value = metrics.get(key)
-            if isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value):
+            if (
+                isinstance(value, (int, float))
+                and not isinstance(value, bool)
+                and np.isfinite(value)
+            ):
                 found.append(float(value))
         return found
 
     @cached_property
     def run_nees(self) -> tuple[dict[str, RunNees], ...]:
-        return tuple(load_run_nees(cell.folder / NEES_FILE) for cell in self.finished if (cell.folder / NEES_FILE).is_file())
+        return tuple(
+            load_run_nees(cell.folder / NEES_FILE)
+            for cell in self.finished
+            if (cell.folder / NEES_FILE).is_file()
+        )
 
     @cached_property
     def averaged_nees(self) -> dict[str, AveragedSeries]:
@@ -126,7 +150,18 @@ def collect(plan: Plan) -> list[PairResults]:
             cells = tuple(sorted(plan.cells_of(dataset, estimator), key=lambda cell: cell.seed))
             finished = tuple(cell for cell in cells if cell.is_finished())
             errors = tuple(
-                f"seed {cell.seed}: {line}" for cell in cells if cell not in finished and (line := _error_line(cell.folder))
+                f"seed {cell.seed}: {line}"
+                for cell in cells
+                if cell not in finished and (line := _error_line(cell.folder))
             )
-            pairs.append(PairResults(dataset, estimator, cells, finished, errors, plan.not_applicable_reason(dataset, estimator)))
+            pairs.append(
+                PairResults(
+                    dataset,
+                    estimator,
+                    cells,
+                    finished,
+                    errors,
+                    plan.not_applicable_reason(dataset, estimator),
+                )
+            )
     return pairs

@@ -40,10 +40,19 @@ def git_revision() -> str | None:
     source = Path(__file__).resolve().parent
     try:
         revision = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=source, capture_output=True, text=True, timeout=5, check=True
+            ["git", "rev-parse", "HEAD"],
+            cwd=source,
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
         ).stdout.strip()
         dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=source, capture_output=True, text=True, timeout=5
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=source,
+            capture_output=True,
+            text=True,
+            timeout=5,
         ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return None
@@ -89,8 +98,15 @@ def estimate_arrays(estimate: Estimate) -> dict[str, np.ndarray]:
             arrays["landmarks_covariances"] = estimate.landmarks.covariances
     diagnostics = estimate.diagnostics
     for field_name in (
-        "nis_t", "nis", "nis_dof", "assoc_t", "assoc_measurement_index", "assoc_landmark_id",
-        "assoc_is_new", "landmark_count_t", "landmark_count",
+        "nis_t",
+        "nis",
+        "nis_dof",
+        "assoc_t",
+        "assoc_measurement_index",
+        "assoc_landmark_id",
+        "assoc_is_new",
+        "landmark_count_t",
+        "landmark_count",
     ):
         arrays[f"diag_{field_name}"] = getattr(diagnostics, field_name)
     for name, values in diagnostics.extras.items():
@@ -154,7 +170,10 @@ def write_run_folder(result: RunResult, out_dir: Path, plots: bool = True) -> di
     save_npz_atomic(out_dir / "estimate.npz", estimate_arrays(estimate))
     events = {
         "notes": list(estimate.notes),
-        "events": [{"t": event.t, "kind": event.kind, **event.details} for event in estimate.diagnostics.events],
+        "events": [
+            {"t": event.t, "kind": event.kind, **event.details}
+            for event in estimate.diagnostics.events
+        ],
     }
     write_atomic(out_dir / "events.json", dump_json(events))
     metrics = compute_metrics(estimate, result.sequence)
@@ -162,6 +181,11 @@ def write_run_folder(result: RunResult, out_dir: Path, plots: bool = True) -> di
     if plots:
         from workbench.plots import write_run_plots
 
-        write_run_plots(estimate, result.sequence, out_dir / "plots", title=f"{request.estimator} on {result.sequence.name}")
+        write_run_plots(
+            estimate,
+            result.sequence,
+            out_dir / "plots",
+            title=f"{request.estimator} on {result.sequence.name}",
+        )
     write_atomic(out_dir / METRICS_FILE, dump_json(metrics))
     return metrics

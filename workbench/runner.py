@@ -7,9 +7,10 @@ around the final ``estimate`` call), so cost columns are comparable across estim
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import yaml
@@ -22,7 +23,9 @@ from datasets.sequence import Sequence
 from workbench.registry import estimator_entry, load_dataset
 
 
-def resolve_config(estimator_class: type, config_file: Path | None = None, overrides: dict[str, str] | None = None) -> BaseModel:
+def resolve_config(
+    estimator_class: type, config_file: Path | None = None, overrides: dict[str, str] | None = None
+) -> BaseModel:
     """The estimator's config: class defaults, then the YAML file, then ``--set`` overrides."""
     values: dict[str, Any] = {}
     if config_file is not None:
@@ -32,7 +35,9 @@ def resolve_config(estimator_class: type, config_file: Path | None = None, overr
         try:
             loaded = yaml.safe_load(config_file.read_text()) or {}
         except yaml.YAMLError as error:
-            raise InputError(f"{config_file}: not valid YAML ({str(error).splitlines()[0]})") from None
+            raise InputError(
+                f"{config_file}: not valid YAML ({str(error).splitlines()[0]})"
+            ) from None
         if not isinstance(loaded, dict):
             raise InputError(f"{config_file}: expected a mapping of option: value")
         values.update(loaded)
@@ -46,7 +51,8 @@ def check_compatible(estimator_name: str, estimator_class: type, sequence: Seque
     missing = missing_sensors(estimator_class.sensor_options, sequence.sensors)
     if missing:
         names = " | ".join(
-            "+".join(sorted(sensor.value for sensor in option)) for option in estimator_class.sensor_options
+            "+".join(sorted(sensor.value for sensor in option))
+            for option in estimator_class.sensor_options
         )
         provided = ", ".join(sorted(sensor.value for sensor in sequence.sensors)) or "none"
         raise InputError(
@@ -54,7 +60,9 @@ def check_compatible(estimator_name: str, estimator_class: type, sequence: Seque
             f"does not provide (it provides: {provided})"
         )
     if sequence.dimension not in estimator_class.dimensions:
-        raise InputError(f"estimator '{estimator_name}' does not support {sequence.dimension}-D dataset '{sequence.name}'")
+        raise InputError(
+            f"estimator '{estimator_name}' does not support {sequence.dimension}-D dataset '{sequence.name}'"
+        )
 
 
 def is_compatible(estimator_class: type, sequence: Sequence) -> bool:
@@ -108,7 +116,11 @@ class RunResult:
     estimate: Estimate
 
 
-def execute(request: RunRequest, sequence: Sequence | None = None, on_step: Callable[[float], None] | None = None) -> RunResult:
+def execute(
+    request: RunRequest,
+    sequence: Sequence | None = None,
+    on_step: Callable[[float], None] | None = None,
+) -> RunResult:
     """Resolve names, load the dataset (unless given), check compatibility and run."""
     entry = estimator_entry(request.estimator)
     estimator_class = entry.load()

@@ -81,7 +81,12 @@ class DatasetSpec:
 
     def options_for(self, estimator: str) -> Options:
         """The ``--set`` options this dataset adds for ``estimator``."""
-        return tuple(option for name, options in self.estimator_options if name == estimator for option in options)
+        return tuple(
+            option
+            for name, options in self.estimator_options
+            if name == estimator
+            for option in options
+        )
 
     def left_out_reason(self, estimator: str) -> str | None:
         for name, reason in self.left_out:
@@ -146,7 +151,9 @@ ALL_ESTIMATORS: tuple[EstimatorSpec, ...] = (
 # Victoria Park has stretches of up to 12.6 s without a landmark (no keyframe): the
 # fixed-lag window must span them, or the smoother would marginalize the last keyframe
 # before the next one connects to it.
-VICTORIA_PARK_OPTIONS: tuple[tuple[str, Options], ...] = (("smoother-fixed-lag", (("lag_s", "15"),)),)
+VICTORIA_PARK_OPTIONS: tuple[tuple[str, Options], ...] = (
+    ("smoother-fixed-lag", (("lag_s", "15"),)),
+)
 
 
 def write_corridor_bag(path: Path) -> None:
@@ -192,7 +199,12 @@ SUITES: dict[str, Suite] = {
             datasets=(
                 DatasetSpec("sim:aghili-rover", (("duration_s", "10"),)),
                 DatasetSpec("sim:guerreiro-loop", (("duration_s", "20"),)),
-                DatasetSpec("victoria-park", (("max_steps", "1000"),), seeded=False, estimator_options=VICTORIA_PARK_OPTIONS),
+                DatasetSpec(
+                    "victoria-park",
+                    (("max_steps", "1000"),),
+                    seeded=False,
+                    estimator_options=VICTORIA_PARK_OPTIONS,
+                ),
                 DatasetSpec("kitti-imu-gps", (("duration_s", "60"),), seeded=False),
             ),
             estimators=ALL_ESTIMATORS,
@@ -203,7 +215,11 @@ SUITES: dict[str, Suite] = {
             "the papers' scenarios at full length, Victoria Park, KITTI IMU/GPS, the synthetic lidar bag; every estimator",
             datasets=(
                 DatasetSpec("sim:aghili-rover"),
-                DatasetSpec("sim:guerreiro-loop", (("ids", "false"),), label="sim:guerreiro-loop (ids=false)"),
+                DatasetSpec(
+                    "sim:guerreiro-loop",
+                    (("ids", "false"),),
+                    label="sim:guerreiro-loop (ids=false)",
+                ),
                 DatasetSpec(
                     "victoria-park",
                     (("ids", "false"),),
@@ -237,7 +253,10 @@ SUITES: dict[str, Suite] = {
                     (("speed_profile", "random"),),
                     label="sim:guerreiro-loop (random speed)",
                     estimator_options=(
-                        ("sensor-based", (("sigma_velocity_m_s", "[0.02, 0.0]"), ("sigma_landmark_m", "0"))),
+                        (
+                            "sensor-based",
+                            (("sigma_velocity_m_s", "[0.02, 0.0]"), ("sigma_landmark_m", "0")),
+                        ),
                     ),
                 ),
                 DatasetSpec("sim:circle", (("duration_s", "30"),)),
@@ -259,7 +278,9 @@ def get_suite(name: str) -> Suite:
         raise InputError(f"unknown suite '{name}' (known: {', '.join(SUITES)})") from None
 
 
-def restrict(suite: Suite, datasets: list[str] | None = None, estimators: list[str] | None = None) -> Suite:
+def restrict(
+    suite: Suite, datasets: list[str] | None = None, estimators: list[str] | None = None
+) -> Suite:
     """The suite with only the named datasets (name or label) and estimators (name or
     label); ``InputError`` for a name the suite does not have."""
     from dataclasses import replace
@@ -270,10 +291,16 @@ def restrict(suite: Suite, datasets: list[str] | None = None, estimators: list[s
         known = {spec.name for spec in specs} | {spec.title for spec in specs}
         unknown = [name for name in wanted if name not in known]
         if unknown:
-            raise InputError(f"suite '{suite.name}' has no {kind} {', '.join(unknown)} (it has: {', '.join(spec.title for spec in specs)})")
+            raise InputError(
+                f"suite '{suite.name}' has no {kind} {', '.join(unknown)} (it has: {', '.join(spec.title for spec in specs)})"
+            )
         return tuple(spec for spec in specs if spec.name in wanted or spec.title in wanted)
 
-    return replace(suite, datasets=keep(suite.datasets, datasets, "dataset"), estimators=keep(suite.estimators, estimators, "estimator"))
+    return replace(
+        suite,
+        datasets=keep(suite.datasets, datasets, "dataset"),
+        estimators=keep(suite.estimators, estimators, "estimator"),
+    )
 
 
 def _resolve_callable(target: str) -> Callable[..., object]:
@@ -294,12 +321,18 @@ def prepare_dataset(spec: DatasetSpec, data_folder: Path) -> None:
         _resolve_callable(spec.generate)(path)
 
 
-def available_parts(suite: Suite) -> tuple[tuple[DatasetSpec, ...], tuple[EstimatorSpec, ...], tuple[str, ...]]:
+def available_parts(
+    suite: Suite,
+) -> tuple[tuple[DatasetSpec, ...], tuple[EstimatorSpec, ...], tuple[str, ...]]:
     """The suite's datasets and estimators that are registered today, and a note for each
     one that is not (skipped, not an error: other parts of the workbench may add it later)."""
     registered = {entry.name for entry in ESTIMATORS}
     estimators = tuple(spec for spec in suite.estimators if spec.name in registered)
-    notes = [f"estimator '{spec.name}' is not registered: skipped" for spec in suite.estimators if spec.name not in registered]
+    notes = [
+        f"estimator '{spec.name}' is not registered: skipped"
+        for spec in suite.estimators
+        if spec.name not in registered
+    ]
     datasets = []
     for spec in suite.datasets:
         try:

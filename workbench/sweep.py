@@ -30,7 +30,14 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from datasets.errors import InputError
-from workbench.suites import DatasetSpec, EstimatorSpec, Suite, available_parts, format_options, prepare_dataset
+from workbench.suites import (
+    DatasetSpec,
+    EstimatorSpec,
+    Suite,
+    available_parts,
+    format_options,
+    prepare_dataset,
+)
 
 REQUEST_FILE = "bench_request.json"
 ERROR_FILE = "error.json"
@@ -38,7 +45,11 @@ METRICS_FILE = "metrics.json"  # run_folder.METRICS_FILE, without importing matp
 
 # One BLAS/OpenMP thread per worker: the workers already fill the cores, and a fixed thread
 # count keeps floating-point reductions identical between local and Dask workers.
-_SINGLE_THREAD_ENVIRONMENT = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+_SINGLE_THREAD_ENVIRONMENT = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+}
 
 
 # ---------------------------------------------------------------------------- the plan
@@ -116,7 +127,9 @@ class Plan:
     notes: tuple[str, ...]
 
     def cells_of(self, dataset: DatasetSpec, estimator: EstimatorSpec) -> list[Cell]:
-        return [cell for cell in self.cells if cell.dataset == dataset and cell.estimator == estimator]
+        return [
+            cell for cell in self.cells if cell.dataset == dataset and cell.estimator == estimator
+        ]
 
     def not_applicable_reason(self, dataset: DatasetSpec, estimator: EstimatorSpec) -> str | None:
         for item in self.not_applicable:
@@ -135,7 +148,9 @@ def seeds_for(dataset: DatasetSpec, runs: int) -> range:
     return range(runs if dataset.seeded else 1)
 
 
-def probe_dataset(name: str, options: tuple[tuple[str, str], ...], estimators: tuple[str, ...]) -> DatasetProbe:
+def probe_dataset(
+    name: str, options: tuple[tuple[str, str], ...], estimators: tuple[str, ...]
+) -> DatasetProbe:
     """Load a dataset once (seed 0) and say which estimators can run on it (worker task)."""
     from workbench.registry import estimator_entry, load_dataset
     from workbench.runner import check_compatible
@@ -156,7 +171,7 @@ def probe_dataset(name: str, options: tuple[tuple[str, str], ...], estimators: t
     return DatasetProbe(frozenset(str(s) for s in sequence.sensors), sequence.dimension, compatible)
 
 
-def plan_sweep(suite: Suite, runs: int, out: Path, backend: "Backend") -> Plan:
+def plan_sweep(suite: Suite, runs: int, out: Path, backend: Backend) -> Plan:
     """The cells of ``suite`` with ``runs`` seeds each, in ``out`` (datasets are probed on
     the backend, in parallel). Submission order is seed-major, so an interrupted sweep has
     a first run of every pair early."""
@@ -172,10 +187,15 @@ def plan_sweep(suite: Suite, runs: int, out: Path, backend: "Backend") -> Plan:
             prepare_dataset(spec, data_folder)
             prepared.append(spec)
         except Exception as error:  # noqa: BLE001 - a generator that fails skips its dataset
-            notes.append(f"dataset '{spec.title}' skipped: could not generate its file: {_one_line(error)}")
+            notes.append(
+                f"dataset '{spec.title}' skipped: could not generate its file: {_one_line(error)}"
+            )
     estimator_names = tuple(dict.fromkeys(spec.name for spec in estimators))
     futures = {
-        spec: backend.submit(probe_dataset, spec.resolved_name(data_folder), spec.options, estimator_names) for spec in prepared
+        spec: backend.submit(
+            probe_dataset, spec.resolved_name(data_folder), spec.options, estimator_names
+        )
+        for spec in prepared
     }
     probes = {spec: future.result() for spec, future in futures.items()}
     usable = []
@@ -196,9 +216,29 @@ def plan_sweep(suite: Suite, runs: int, out: Path, backend: "Backend") -> Plan:
             if seed not in seeds_for(spec, runs):
                 continue
             for estimator in estimators:
-                if probes[spec].compatible.get(estimator.name) is None and spec.left_out_reason(estimator.name) is None:
-                    cells.append(Cell(spec, spec.resolved_name(data_folder), estimator, seed, run_folder(out, spec, estimator, seed)))
-    return Plan(suite, runs, out, tuple(usable), estimators, tuple(cells), tuple(not_applicable), tuple(notes))
+                if (
+                    probes[spec].compatible.get(estimator.name) is None
+                    and spec.left_out_reason(estimator.name) is None
+                ):
+                    cells.append(
+                        Cell(
+                            spec,
+                            spec.resolved_name(data_folder),
+                            estimator,
+                            seed,
+                            run_folder(out, spec, estimator, seed),
+                        )
+                    )
+    return Plan(
+        suite,
+        runs,
+        out,
+        tuple(usable),
+        estimators,
+        tuple(cells),
+        tuple(not_applicable),
+        tuple(notes),
+    )
 
 
 # ---------------------------------------------------------------------------- one cell
@@ -305,7 +345,9 @@ class LocalBackend:
         self.workers = max(1, workers or os.cpu_count() or 1)
         os.environ.update(_SINGLE_THREAD_ENVIRONMENT)  # inherited by the fork server
         context = multiprocessing.get_context("forkserver")
-        context.set_forkserver_preload(["workbench.sweep", "workbench.runner", "workbench.monte_carlo"])
+        context.set_forkserver_preload(
+            ["workbench.sweep", "workbench.runner", "workbench.monte_carlo"]
+        )
         self._executor = concurrent.futures.ProcessPoolExecutor(
             self.workers, mp_context=context, initializer=_exit_with_sweep, initargs=(os.getpid(),)
         )
@@ -334,7 +376,9 @@ class DaskBackend:
         try:
             self._client = Client(address, timeout="20s")
         except (OSError, TimeoutError) as error:
-            raise InputError(f"--scheduler {address}: cannot connect to a Dask scheduler ({_one_line(error)})") from None
+            raise InputError(
+                f"--scheduler {address}: cannot connect to a Dask scheduler ({_one_line(error)})"
+            ) from None
         self.address = address
 
     def submit(self, function: Callable[..., Any], *args: Any) -> Any:
@@ -406,6 +450,10 @@ def describe_cells(plan: Plan) -> list[str]:
         for estimator in plan.estimators:
             reason = plan.not_applicable_reason(dataset, estimator)
             options = format_options(dataset.options + estimator.overrides)
-            status = f"n/a ({reason})" if reason else f"{len(plan.cells_of(dataset, estimator))} run(s)"
-            lines.append(f"{dataset.title} / {estimator.title} {options}: {status}".replace("  ", " "))
+            status = (
+                f"n/a ({reason})" if reason else f"{len(plan.cells_of(dataset, estimator))} run(s)"
+            )
+            lines.append(
+                f"{dataset.title} / {estimator.title} {options}: {status}".replace("  ", " ")
+            )
     return lines

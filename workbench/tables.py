@@ -53,7 +53,12 @@ COLUMNS: tuple[Column, ...] = (
     Column("ate_smoothed_rmse_m", "ATE smoothed [m]", "metric", "ate_rmse_smoothed_m"),
     Column("rpe_trans_rmse_m", "RPE trans [m]", "metric", "rpe_trans_rmse_m"),
     Column("rpe_rot_rmse_deg", "RPE rot [deg]", "metric", "rpe_rot_rmse_deg"),
-    Column("final_orientation_error_deg", "final orient. [deg]", "metric", "final_orientation_error_deg"),
+    Column(
+        "final_orientation_error_deg",
+        "final orient. [deg]",
+        "metric",
+        "final_orientation_error_deg",
+    ),
     Column("gps_holdout_rmse_m", "GPS hold-out [m]", "metric", "gps_holdout_rmse_m"),
     Column("anees_pose", "ANEES pose", "nees", "pose"),
     Column("anees_velocity", "ANEES velocity", "nees", "velocity"),
@@ -77,11 +82,15 @@ class Stat:
     count: int
 
     @staticmethod
-    def of(values: list[float]) -> "Stat | None":
+    def of(values: list[float]) -> Stat | None:
         if not values:
             return None
         array = np.asarray(values, dtype=float)
-        return Stat(float(np.mean(array)), float(np.std(array, ddof=1)) if len(array) > 1 else None, len(array))
+        return Stat(
+            float(np.mean(array)),
+            float(np.std(array, ddof=1)) if len(array) > 1 else None,
+            len(array),
+        )
 
 
 @dataclass(frozen=True)
@@ -116,14 +125,22 @@ def build_row(pair: PairResults) -> Row:
         if column.kind == "metric":
             stats[column.key] = Stat.of(pair.values(column.source))
         elif column.kind == "landmarks":
-            stats[column.key] = Stat.of([float(s.final_landmarks) for s in pair.series if s.final_landmarks is not None])
+            stats[column.key] = Stat.of(
+                [float(s.final_landmarks) for s in pair.series if s.final_landmarks is not None]
+            )
         else:
             averaged = pair.averaged_nees.get(column.source)
             bounds = averaged.typical_bounds if averaged is not None else None
             if averaged is None or bounds is None:
                 nees[column.key] = None
             else:
-                nees[column.key] = NeesCell(averaged.overall_mean, bounds[0], bounds[1], 100.0 * averaged.inside_fraction, averaged.runs)
+                nees[column.key] = NeesCell(
+                    averaged.overall_mean,
+                    bounds[0],
+                    bounds[1],
+                    100.0 * averaged.inside_fraction,
+                    averaged.runs,
+                )
     if pair.not_applicable is not None:
         status = "n/a"
     elif not pair.finished:
@@ -132,7 +149,15 @@ def build_row(pair: PairResults) -> Row:
         status = "partial"
     else:
         status = "ok"
-    return Row(pair.dataset.title, pair.estimator.title, status, len(pair.finished), len(pair.cells), stats, nees)
+    return Row(
+        pair.dataset.title,
+        pair.estimator.title,
+        status,
+        len(pair.finished),
+        len(pair.cells),
+        stats,
+        nees,
+    )
 
 
 def build_rows(plan: Plan) -> tuple[list[Row], list[str]]:
@@ -141,7 +166,9 @@ def build_rows(plan: Plan) -> tuple[list[Row], list[str]]:
     notes = list(plan.notes)
     for pair in pairs:
         if pair.not_applicable is not None:
-            notes.append(f"n/a {pair.dataset.title} / {pair.estimator.title}: {pair.not_applicable}")
+            notes.append(
+                f"n/a {pair.dataset.title} / {pair.estimator.title}: {pair.not_applicable}"
+            )
         for error in pair.errors:
             notes.append(f"failed {pair.dataset.title} / {pair.estimator.title} {error}")
     return [build_row(pair) for pair in pairs], notes
@@ -177,7 +204,9 @@ def _runs_text(row: Row) -> str:
     return str(row.finished) if row.finished == row.planned else f"{row.finished}/{row.planned}"
 
 
-def _cell_text(row: Row, column: Column, plus_minus: str, percent: str = "%", first: bool = False) -> str:
+def _cell_text(
+    row: Row, column: Column, plus_minus: str, percent: str = "%", first: bool = False
+) -> str:
     if row.status in ("n/a", "failed", "missing"):
         return row.status if first else ""
     if column.kind == "nees":
@@ -190,7 +219,13 @@ def _shown_columns(rows: list[Row]) -> list[Column]:
     shown = []
     for column in COLUMNS:
         for row in rows:
-            if row.status in ("ok", "partial") and (row.nees.get(column.key) if column.kind == "nees" else row.stats.get(column.key)) is not None:
+            if (
+                row.status in ("ok", "partial")
+                and (
+                    row.nees.get(column.key) if column.kind == "nees" else row.stats.get(column.key)
+                )
+                is not None
+            ):
                 shown.append(column)
                 break
     return shown
@@ -200,10 +235,15 @@ def markdown_table(rows: list[Row], notes: list[str]) -> str:
     """The table in Markdown (GitHub pipes), with the notes as a list under it."""
     columns = _shown_columns(rows)
     header = ["dataset", "estimator", "runs"] + [column.header for column in columns]
-    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---"] * 3 + ["---:"] * len(columns)) + "|"]
+    lines = [
+        "| " + " | ".join(header) + " |",
+        "|" + "|".join(["---"] * 3 + ["---:"] * len(columns)) + "|",
+    ]
     for row in rows:
         cells = [row.dataset, row.estimator, _runs_text(row) if row.status != "n/a" else "-"]
-        cells += [_cell_text(row, column, " ± ", first=index == 0) for index, column in enumerate(columns)]
+        cells += [
+            _cell_text(row, column, " ± ", first=index == 0) for index, column in enumerate(columns)
+        ]
         lines.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
     lines.append("")
     lines.append(
@@ -217,7 +257,18 @@ def markdown_table(rows: list[Row], notes: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
-_LATEX_SPECIAL = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\^{}"}
+_LATEX_SPECIAL = {
+    "\\": r"\textbackslash{}",
+    "&": r"\&",
+    "%": r"\%",
+    "$": r"\$",
+    "#": r"\#",
+    "_": r"\_",
+    "{": r"\{",
+    "}": r"\}",
+    "~": r"\textasciitilde{}",
+    "^": r"\^{}",
+}
 
 
 def latex_escape(text: str) -> str:
@@ -240,7 +291,11 @@ def latex_table(rows: list[Row]) -> str:
         if previous_dataset is not None and row.dataset != previous_dataset:
             lines.append("\\midrule")
         previous_dataset = row.dataset
-        cells = [latex_escape(row.dataset), latex_escape(row.estimator), _runs_text(row) if row.status != "n/a" else "--"]
+        cells = [
+            latex_escape(row.dataset),
+            latex_escape(row.estimator),
+            _runs_text(row) if row.status != "n/a" else "--",
+        ]
         for index, column in enumerate(columns):
             text = _cell_text(row, column, "\0", "\1", first=index == 0)
             cells.append(latex_escape(text).replace("\0", " $\\pm$ ").replace("\1", "\\%"))
@@ -253,7 +308,13 @@ def csv_header() -> list[str]:
     header = ["dataset", "estimator", "status", "runs", "runs_planned"]
     for column in COLUMNS:
         if column.kind == "nees":
-            header += [f"{column.key}_mean", f"{column.key}_lower", f"{column.key}_upper", f"{column.key}_inside_pct", f"{column.key}_runs"]
+            header += [
+                f"{column.key}_mean",
+                f"{column.key}_lower",
+                f"{column.key}_upper",
+                f"{column.key}_inside_pct",
+                f"{column.key}_runs",
+            ]
         else:
             header += [f"{column.key}_mean", f"{column.key}_std"]
     return header
@@ -266,18 +327,34 @@ def csv_table(rows: list[Row]) -> str:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(csv_header())
     for row in rows:
-        record: list[str] = [row.dataset, row.estimator, row.status, str(row.finished), str(row.planned)]
+        record: list[str] = [
+            row.dataset,
+            row.estimator,
+            row.status,
+            str(row.finished),
+            str(row.planned),
+        ]
         for column in COLUMNS:
             if column.kind == "nees":
                 cell = row.nees.get(column.key)
                 record += (
                     ["", "", "", "", ""]
                     if cell is None
-                    else [format_number(cell.mean, 6), format_number(cell.lower, 6), format_number(cell.upper, 6), f"{cell.inside_pct:.2f}", str(cell.runs)]
+                    else [
+                        format_number(cell.mean, 6),
+                        format_number(cell.lower, 6),
+                        format_number(cell.upper, 6),
+                        f"{cell.inside_pct:.2f}",
+                        str(cell.runs),
+                    ]
                 )
             else:
                 stat = row.stats.get(column.key)
-                record += ["", ""] if stat is None else [format_number(stat.mean, 6), format_number(stat.std, 6)]
+                record += (
+                    ["", ""]
+                    if stat is None
+                    else [format_number(stat.mean, 6), format_number(stat.std, 6)]
+                )
         writer.writerow(record)
     return buffer.getvalue()
 
@@ -296,4 +373,7 @@ def write_tables(plan: Plan, out: Path | None = None) -> dict[str, Path]:
 
 def non_timing_columns(csv_text: str) -> list[dict[str, str]]:
     """The rows of a ``table.csv`` without the ``time_*`` columns (for comparisons)."""
-    return [{key: value for key, value in record.items() if not key.startswith("time_")} for record in csv.DictReader(io.StringIO(csv_text))]
+    return [
+        {key: value for key, value in record.items() if not key.startswith("time_")}
+        for record in csv.DictReader(io.StringIO(csv_text))
+    ]

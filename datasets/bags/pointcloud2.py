@@ -48,7 +48,9 @@ class DecodedCloud:
     time_field: str | None
 
 
-def cloud_dtype(fields, point_step: int, bigendian: bool, names: tuple[str, ...], where: str) -> np.dtype:
+def cloud_dtype(
+    fields, point_step: int, bigendian: bool, names: tuple[str, ...], where: str
+) -> np.dtype:
     """Structured dtype reading ``names`` out of records of ``point_step`` bytes."""
     by_name = {field.name: field for field in fields}
     order = ">" if bigendian else "<"
@@ -56,16 +58,24 @@ def cloud_dtype(fields, point_step: int, bigendian: bool, names: tuple[str, ...]
     for name in names:
         field = by_name[name]
         if field.datatype not in _NUMPY_TYPES:
-            raise InputError(f"{where}: PointCloud2 field '{name}' has unknown datatype {field.datatype}")
+            raise InputError(
+                f"{where}: PointCloud2 field '{name}' has unknown datatype {field.datatype}"
+            )
         size = np.dtype(_NUMPY_TYPES[field.datatype]).itemsize
         if field.offset + size > point_step:
-            raise InputError(f"{where}: PointCloud2 field '{name}' (offset {field.offset}) runs past point_step {point_step}")
+            raise InputError(
+                f"{where}: PointCloud2 field '{name}' (offset {field.offset}) runs past point_step {point_step}"
+            )
         formats.append(order + _NUMPY_TYPES[field.datatype])
         offsets.append(field.offset)
-    return np.dtype({"names": list(names), "formats": formats, "offsets": offsets, "itemsize": point_step})
+    return np.dtype(
+        {"names": list(names), "formats": formats, "offsets": offsets, "itemsize": point_step}
+    )
 
 
-def decode_pointcloud2(message, stamp_s: float, where: str, time_unit: str = "auto") -> DecodedCloud:
+def decode_pointcloud2(
+    message, stamp_s: float, where: str, time_unit: str = "auto"
+) -> DecodedCloud:
     """Finite xyz points and relative per-point times of a PointCloud2 message.
 
     Args:
@@ -82,11 +92,20 @@ def decode_pointcloud2(message, stamp_s: float, where: str, time_unit: str = "au
     missing = [axis for axis in ("x", "y", "z") if axis not in names]
     if missing:
         present = ", ".join(sorted(names)) or "none"
-        raise InputError(f"{where}: PointCloud2 has no {'/'.join(missing)} field (fields: {present})")
+        raise InputError(
+            f"{where}: PointCloud2 has no {'/'.join(missing)} field (fields: {present})"
+        )
     time_field = next((name for name in TIME_FIELDS if name in names), None)
     wanted = ("x", "y", "z") + ((time_field,) if time_field else ())
-    dtype = cloud_dtype(message.fields, int(message.point_step), bool(message.is_bigendian), wanted, where)
-    height, width, point_step, row_step = int(message.height), int(message.width), int(message.point_step), int(message.row_step)
+    dtype = cloud_dtype(
+        message.fields, int(message.point_step), bool(message.is_bigendian), wanted, where
+    )
+    height, width, point_step, row_step = (
+        int(message.height),
+        int(message.width),
+        int(message.point_step),
+        int(message.row_step),
+    )
     if height * width == 0:
         return DecodedCloud(np.zeros((0, 3)), np.zeros(0) if time_field else None, 0, time_field)
     row_bytes = width * point_step
@@ -94,12 +113,20 @@ def decode_pointcloud2(message, stamp_s: float, where: str, time_unit: str = "au
     data = np.asarray(message.data, dtype=np.uint8)
     needed = row_step * (height - 1) + row_bytes
     if data.size < needed:
-        raise InputError(f"{where}: PointCloud2 data has {data.size} bytes, its header declares {needed}")
+        raise InputError(
+            f"{where}: PointCloud2 data has {data.size} bytes, its header declares {needed}"
+        )
     if row_step == row_bytes:
         raw = data[: height * row_bytes]
     else:  # drop the padding at the end of every row
-        raw = np.lib.stride_tricks.as_strided(data, shape=(height, row_bytes), strides=(row_step, 1)).copy().ravel()
-    records = np.frombuffer(raw.tobytes() if not raw.flags.c_contiguous else raw, dtype=dtype, count=height * width)
+        raw = (
+            np.lib.stride_tricks.as_strided(data, shape=(height, row_bytes), strides=(row_step, 1))
+            .copy()
+            .ravel()
+        )
+    records = np.frombuffer(
+        raw.tobytes() if not raw.flags.c_contiguous else raw, dtype=dtype, count=height * width
+    )
     points = np.column_stack([records["x"], records["y"], records["z"]]).astype(np.float64)
     finite = np.isfinite(points).all(axis=1)
     times = None
@@ -107,7 +134,9 @@ def decode_pointcloud2(message, stamp_s: float, where: str, time_unit: str = "au
         times = relative_point_seconds(records[time_field], stamp_s, time_unit)
         finite &= np.isfinite(times)
         times = times[finite]
-    return DecodedCloud(points[finite], times, int(finite.size - np.count_nonzero(finite)), time_field)
+    return DecodedCloud(
+        points[finite], times, int(finite.size - np.count_nonzero(finite)), time_field
+    )
 
 
 def relative_point_seconds(values: np.ndarray, stamp_s: float, time_unit: str) -> np.ndarray:

@@ -56,11 +56,15 @@ class ReadReport:
     def skip(self, topic: str, reason: str, stamp_s: float, detail: str = "") -> None:
         key = (topic, reason)
         self.skipped[key] += 1
-        self.examples.setdefault(key, f"{topic} at t={stamp_s:.9f}: {reason}{(' (' + detail + ')') if detail else ''}")
+        self.examples.setdefault(
+            key, f"{topic} at t={stamp_s:.9f}: {reason}{(' (' + detail + ')') if detail else ''}"
+        )
 
     def lines(self) -> list[str]:
         """One line per skip kind: ``N x topic: reason (first at t=...)``."""
-        return [f"skipped {count} x {self.examples[key]}" for key, count in sorted(self.skipped.items())]
+        return [
+            f"skipped {count} x {self.examples[key]}" for key, count in sorted(self.skipped.items())
+        ]
 
 
 @dataclass(frozen=True)
@@ -109,23 +113,41 @@ def topic_types(reader) -> dict[str, str]:
 
 
 def _listing(types: dict[str, str]) -> str:
-    return "; ".join(f"{topic} [{msgtype}]" for topic, msgtype in sorted(types.items())) or "no topics"
+    return (
+        "; ".join(f"{topic} [{msgtype}]" for topic, msgtype in sorted(types.items())) or "no topics"
+    )
 
 
-def _choose(path: Path, types: dict[str, str], wanted: tuple[str, ...], given: str | None, role: str, option: str, required: bool) -> str | None:
+def _choose(
+    path: Path,
+    types: dict[str, str],
+    wanted: tuple[str, ...],
+    given: str | None,
+    role: str,
+    option: str,
+    required: bool,
+) -> str | None:
     if given:
         if given not in types:
             raise InputError(f"{path}: no topic '{given}' ({option}); topics: {_listing(types)}")
         if types[given] not in wanted:
-            raise InputError(f"{path}: topic '{given}' is {types[given]}, not {' or '.join(wanted)} ({option})")
+            raise InputError(
+                f"{path}: topic '{given}' is {types[given]}, not {' or '.join(wanted)} ({option})"
+            )
         return given
     candidates = sorted(topic for topic, msgtype in types.items() if msgtype in wanted)
     if not candidates:
         if required:
-            raise InputError(f"{path}: no {' or '.join(wanted)} topic for the {role}; topics: {_listing(types)}")
+            raise InputError(
+                f"{path}: no {' or '.join(wanted)} topic for the {role}; topics: {_listing(types)}"
+            )
         return None
     if len(candidates) > 1 and role == "ground truth":
-        named = [topic for topic in candidates if any(key in topic.lower() for key in ("truth", "gt", "groundtruth"))]
+        named = [
+            topic
+            for topic in candidates
+            if any(key in topic.lower() for key in ("truth", "gt", "groundtruth"))
+        ]
         if len(named) == 1:
             return named[0]
     if len(candidates) > 1:
@@ -134,12 +156,27 @@ def _choose(path: Path, types: dict[str, str], wanted: tuple[str, ...], given: s
     return candidates[0]
 
 
-def discover_topics(path: Path, types: dict[str, str], lidar: str | None = None, imu: str | None = None, ground_truth: str | None = None, gps: str | None = None) -> BagTopics:
+def discover_topics(
+    path: Path,
+    types: dict[str, str],
+    lidar: str | None = None,
+    imu: str | None = None,
+    ground_truth: str | None = None,
+    gps: str | None = None,
+) -> BagTopics:
     """Topics by type when not given; ``InputError`` with the candidates when ambiguous."""
     return BagTopics(
         lidar=_choose(path, types, (POINTCLOUD2,), lidar, "lidar", "lidar_topic", True),
         imu=_choose(path, types, (IMU,), imu, "IMU", "imu_topic", False),
-        ground_truth=_choose(path, types, GROUND_TRUTH_TYPES, ground_truth, "ground truth", "ground_truth_topic", False),
+        ground_truth=_choose(
+            path,
+            types,
+            GROUND_TRUTH_TYPES,
+            ground_truth,
+            "ground truth",
+            "ground_truth_topic",
+            False,
+        ),
         gps=_choose(path, types, (NAVSATFIX,), gps, "GPS", "gps_topic", False),
     )
 
@@ -154,7 +191,9 @@ def stamp_seconds(message, log_ns: int) -> float:
     return ns * 1e-9 if ns > 0 else log_ns * 1e-9
 
 
-def iter_messages(reader, path: Path, topics: list[str]) -> Iterator[tuple[str, str, float, object]]:
+def iter_messages(
+    reader, path: Path, topics: list[str]
+) -> Iterator[tuple[str, str, float, object]]:
     """``(topic, type, stamp [s], message)`` in log order; rosbags failures -> ``InputError``
     naming the file, the topic and the time of the last good message."""
     connections = [connection for connection in reader.connections if connection.topic in topics]
@@ -166,12 +205,16 @@ def iter_messages(reader, path: Path, topics: list[str]) -> Iterator[tuple[str, 
         except StopIteration:
             return
         except Exception as error:
-            raise InputError(f"{path}: unreadable after {last} ({type(error).__name__}: {error})") from None
+            raise InputError(
+                f"{path}: unreadable after {last} ({type(error).__name__}: {error})"
+            ) from None
         connection, log_ns, raw = item
         try:
             message = reader.deserialize(raw, connection.msgtype)
         except Exception as error:
-            raise InputError(f"{path}: {connection.topic} at log time {log_ns * 1e-9:.9f}: cannot deserialize {connection.msgtype} ({type(error).__name__}: {error})") from None
+            raise InputError(
+                f"{path}: {connection.topic} at log time {log_ns * 1e-9:.9f}: cannot deserialize {connection.msgtype} ({type(error).__name__}: {error})"
+            ) from None
         stamp = stamp_seconds(message, log_ns)
         last = f"{connection.topic} at t={stamp:.9f}"
         yield connection.topic, connection.msgtype, stamp, message
@@ -200,7 +243,15 @@ class ReadSettings:
     reorder_window_s: float = 1.0
 
 
-def convert(path: Path, topic: str, msgtype: str, stamp: float, message, settings: ReadSettings, report: ReadReport) -> Measurement | None:
+def convert(
+    path: Path,
+    topic: str,
+    msgtype: str,
+    stamp: float,
+    message,
+    settings: ReadSettings,
+    report: ReadReport,
+) -> Measurement | None:
     """One message -> measurement, or None (skipped and counted) for an empty cloud, NaN IMU
     sample or GPS without fix. ``InputError`` for a cloud without x/y/z."""
     where = f"{path}, topic {topic}, t={stamp:.9f}"
@@ -226,9 +277,15 @@ def convert(path: Path, topic: str, msgtype: str, stamp: float, message, setting
             report.skip(topic, "GPS without fix", stamp)
             return None
         covariance = np.asarray(message.position_covariance, dtype=float).reshape(3, 3)
-        if message.position_covariance_type == 0 or not np.all(np.isfinite(covariance)) or np.any(np.diag(covariance) <= 0):
+        if (
+            message.position_covariance_type == 0
+            or not np.all(np.isfinite(covariance))
+            or np.any(np.diag(covariance) <= 0)
+        ):
             covariance = np.eye(3) * settings.gps_sigma_m**2
-        return GpsFix(t=stamp, position=geodetic_to_enu(fix, settings.gps_origin)[0], covariance=covariance)
+        return GpsFix(
+            t=stamp, position=geodetic_to_enu(fix, settings.gps_origin)[0], covariance=covariance
+        )
     return None
 
 
@@ -241,7 +298,9 @@ def first_gps_origin(reader, path: Path, topic: str) -> tuple[float, float, floa
     return None
 
 
-def read_ground_truth(path: Path, topic: str, report: ReadReport) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def read_ground_truth(
+    path: Path, topic: str, report: ReadReport
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All poses of a ground-truth topic: t (N,), positions (N, 3), quaternions wxyz (N, 4),
     stamp-ordered; backwards or non-finite poses skipped and counted."""
     times, positions, quats = [], [], []
@@ -261,7 +320,9 @@ def read_ground_truth(path: Path, topic: str, report: ReadReport) -> tuple[np.nd
     return np.array(times), np.array(positions).reshape(-1, 3), np.array(quats).reshape(-1, 4)
 
 
-def read_stream(path: Path, topics: list[str], settings: ReadSettings, report: ReadReport) -> Iterator[tuple[str, Measurement]]:
+def read_stream(
+    path: Path, topics: list[str], settings: ReadSettings, report: ReadReport
+) -> Iterator[tuple[str, Measurement]]:
     """``(topic, measurement)`` of the given topics, lazily, in stamp order (module docstring)."""
     heap: list[tuple[float, int, str, Measurement]] = []
     counter = itertools.count()
@@ -271,10 +332,17 @@ def read_stream(path: Path, topics: list[str], settings: ReadSettings, report: R
         for topic, msgtype, stamp, message in iter_messages(reader, path, topics):
             report.messages[topic] += 1
             if stamp <= last_on_topic.get(topic, -np.inf):
-                report.skip(topic, "stamp went backwards (or repeated)", stamp, f"previous {last_on_topic[topic]:.9f}")
+                report.skip(
+                    topic,
+                    "stamp went backwards (or repeated)",
+                    stamp,
+                    f"previous {last_on_topic[topic]:.9f}",
+                )
                 continue
             if stamp < emitted:
-                report.skip(topic, "stamp older than the reorder window", stamp, f"already at {emitted:.9f}")
+                report.skip(
+                    topic, "stamp older than the reorder window", stamp, f"already at {emitted:.9f}"
+                )
                 continue
             measurement = convert(path, topic, msgtype, stamp, message, settings, report)
             last_on_topic[topic] = stamp

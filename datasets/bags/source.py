@@ -19,11 +19,31 @@ from pathlib import Path
 import numpy as np
 from pydantic import ConfigDict, Field
 
-from datasets.bags.reader import ReadReport, ReadSettings, discover_topics, first_gps_origin, iter_messages, open_bag, read_ground_truth, read_stream, topic_types
+from datasets.bags.reader import (
+    ReadReport,
+    ReadSettings,
+    discover_topics,
+    first_gps_origin,
+    iter_messages,
+    open_bag,
+    read_ground_truth,
+    read_stream,
+    topic_types,
+)
 from datasets.errors import InputError
-from datasets.lidar.corner_truth import CornerTruth, interpolate_poses, read_corner_truth, sidecar_for
+from datasets.lidar.corner_truth import (
+    CornerTruth,
+    interpolate_poses,
+    read_corner_truth,
+    sidecar_for,
+)
 from datasets.lidar.corners import CornerConfig
-from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, LidarSourceOptions, with_front_end
+from datasets.lidar.frontend import (
+    FrontEndSettings,
+    LidarFrontEnd,
+    LidarSourceOptions,
+    with_front_end,
+)
 from datasets.lidar.kiss_icp_odometry import KissIcpSettings
 from datasets.measurements import Sensor
 from datasets.options import build_model, yaml_value
@@ -42,21 +62,44 @@ class BagOptions(LidarSourceOptions):
 
     lidar_topic: str | None = Field(None, description="PointCloud2 topic (default: the only one)")
     imu_topic: str | None = Field(None, description="Imu topic (default: the only one, if any)")
-    ground_truth_topic: str | None = Field(None, description="Odometry/PoseStamped ground-truth topic (default: the only one)")
-    gps_topic: str | None = Field(None, description="NavSatFix topic (default: the only one, if any)")
+    ground_truth_topic: str | None = Field(
+        None, description="Odometry/PoseStamped ground-truth topic (default: the only one)"
+    )
+    gps_topic: str | None = Field(
+        None, description="NavSatFix topic (default: the only one, if any)"
+    )
     imu: bool = Field(True, description="use the IMU topic when there is one")
     gps: bool = Field(True, description="use the NavSatFix topic when there is one")
-    gps_sigma_m: float = Field(1.0, gt=0, description="GPS std when a fix carries no covariance [m]")
-    gyro_noise_density: float | None = Field(None, gt=0, description="[rad/s/sqrt(Hz)] (default: from the Imu covariance, else 1.7e-4)")
-    accel_noise_density: float | None = Field(None, gt=0, description="[m/s^2/sqrt(Hz)] (default: from the Imu covariance, else 2e-3)")
-    gyro_bias_walk: float = Field(2e-5, gt=0, description="gyro bias random walk [rad/s^2/sqrt(Hz)] (bags do not say; a MEMS-class value)")
-    accel_bias_walk: float = Field(3e-4, gt=0, description="accelerometer bias random walk [m/s^3/sqrt(Hz)] (bags do not say)")
-    gyro_bias_sigma_rad_s: float = Field(0.01, gt=0, description="std of the initial gyro bias [rad/s]")
-    accel_bias_sigma_m_s2: float = Field(0.1, gt=0, description="std of the initial accelerometer bias [m/s^2]")
-    lidar_to_body: tuple[float, float, float, float, float, float, float] | None = Field(
-        None, description="lidar pose in the body (IMU) frame: [x, y, z, qw, qx, qy, qz]; clouds are moved into the body frame (also levels a tilted lidar for the corner slab)"
+    gps_sigma_m: float = Field(
+        1.0, gt=0, description="GPS std when a fix carries no covariance [m]"
     )
-    reorder_window_s: float = Field(1.0, ge=0, description="how far stamps may lag bag order and still be reordered [s]")
+    gyro_noise_density: float | None = Field(
+        None, gt=0, description="[rad/s/sqrt(Hz)] (default: from the Imu covariance, else 1.7e-4)"
+    )
+    accel_noise_density: float | None = Field(
+        None, gt=0, description="[m/s^2/sqrt(Hz)] (default: from the Imu covariance, else 2e-3)"
+    )
+    gyro_bias_walk: float = Field(
+        2e-5,
+        gt=0,
+        description="gyro bias random walk [rad/s^2/sqrt(Hz)] (bags do not say; a MEMS-class value)",
+    )
+    accel_bias_walk: float = Field(
+        3e-4, gt=0, description="accelerometer bias random walk [m/s^3/sqrt(Hz)] (bags do not say)"
+    )
+    gyro_bias_sigma_rad_s: float = Field(
+        0.01, gt=0, description="std of the initial gyro bias [rad/s]"
+    )
+    accel_bias_sigma_m_s2: float = Field(
+        0.1, gt=0, description="std of the initial accelerometer bias [m/s^2]"
+    )
+    lidar_to_body: tuple[float, float, float, float, float, float, float] | None = Field(
+        None,
+        description="lidar pose in the body (IMU) frame: [x, y, z, qw, qx, qy, qz]; clouds are moved into the body frame (also levels a tilted lidar for the corner slab)",
+    )
+    reorder_window_s: float = Field(
+        1.0, ge=0, description="how far stamps may lag bag order and still be reordered [s]"
+    )
 
 
 def nest_dotted(options: dict[str, str]) -> dict[str, object]:
@@ -96,11 +139,17 @@ def extrinsic_matrix(pose: tuple[float, ...] | None) -> np.ndarray | None:
     return matrix
 
 
-def _ground_truth(times: np.ndarray, positions: np.ndarray, quats: np.ndarray, truth: CornerTruth | None) -> GroundTruth | None:
+def _ground_truth(
+    times: np.ndarray, positions: np.ndarray, quats: np.ndarray, truth: CornerTruth | None
+) -> GroundTruth | None:
     if len(times) < 2 and truth is None:
         return None
     pose = Trajectory(times, positions, quats) if len(times) >= 1 else None
-    landmarks = LandmarkMap(ids=truth.ids.copy(), positions=truth.positions.copy(), frame=Frame.WORLD) if truth is not None else None
+    landmarks = (
+        LandmarkMap(ids=truth.ids.copy(), positions=truth.positions.copy(), frame=Frame.WORLD)
+        if truth is not None
+        else None
+    )
     return GroundTruth(history=StateHistory(pose=pose), landmarks=landmarks)
 
 
@@ -108,7 +157,9 @@ def _initial_state(start_s: float, truth: Trajectory | None) -> InitialState:
     """From the ground truth at the start when the bag has one (velocity by differences);
     otherwise the first body frame defines the world."""
     if truth is None or len(truth) < 2:
-        return InitialState(t=start_s, position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0]), velocity=None)
+        return InitialState(
+            t=start_s, position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0]), velocity=None
+        )
     t0 = max(start_s, float(truth.t[0]))
     step = float(np.median(np.diff(truth.t)))
     positions, quats = interpolate_poses(truth, np.array([t0, t0 + step]))
@@ -116,7 +167,9 @@ def _initial_state(start_s: float, truth: Trajectory | None) -> InitialState:
     return InitialState(t=t0, position=positions[0], rotation=quats[0], velocity=velocity)
 
 
-def _imu_noise(reader, topic: str | None, path: Path) -> tuple[float | None, float | None, float | None]:
+def _imu_noise(
+    reader, topic: str | None, path: Path
+) -> tuple[float | None, float | None, float | None]:
     """IMU rate and continuous-time noise densities from the first message's covariances
     (a discrete std sigma at rate f is a density sigma / sqrt(f)); None where unknown."""
     if topic is None:
@@ -148,7 +201,14 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     path = Path(argument)
     with open_bag(path) as reader:
         types = topic_types(reader)
-        topics = discover_topics(path, types, settings.lidar_topic, settings.imu_topic, settings.ground_truth_topic, settings.gps_topic)
+        topics = discover_topics(
+            path,
+            types,
+            settings.lidar_topic,
+            settings.imu_topic,
+            settings.ground_truth_topic,
+            settings.gps_topic,
+        )
         imu_topic = topics.imu if settings.imu else None
         gps_topic = topics.gps if settings.gps else None
         origin = first_gps_origin(reader, path, gps_topic) if gps_topic else None
@@ -156,27 +216,52 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             log.warning("%s: %s has no valid fix; GPS not used", path, gps_topic)
             gps_topic = None
         start_s = reader.start_time * 1e-9
-        rates = {"lidar": float(reader.topics[topics.lidar].msgcount / max((reader.end_time - reader.start_time) * 1e-9, 1e-9))}
+        rates = {
+            "lidar": float(
+                reader.topics[topics.lidar].msgcount
+                / max((reader.end_time - reader.start_time) * 1e-9, 1e-9)
+            )
+        }
         imu_rate, gyro_density, accel_density = _imu_noise(reader, imu_topic, path)
         if imu_rate:
             rates["imu"] = float(imu_rate)
     load_report = ReadReport()
-    gt = read_ground_truth(path, topics.ground_truth, load_report) if topics.ground_truth else (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+    gt = (
+        read_ground_truth(path, topics.ground_truth, load_report)
+        if topics.ground_truth
+        else (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+    )
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
     ground_truth = _ground_truth(*gt, truth)
     read_settings = ReadSettings(
-        time_unit=settings.point_time_unit, gps_origin=origin, gps_sigma_m=settings.gps_sigma_m,
-        reorder_window_s=settings.reorder_window_s, lidar_to_body=extrinsic_matrix(settings.lidar_to_body),
+        time_unit=settings.point_time_unit,
+        gps_origin=origin,
+        gps_sigma_m=settings.gps_sigma_m,
+        reorder_window_s=settings.reorder_window_s,
+        lidar_to_body=extrinsic_matrix(settings.lidar_to_body),
     )
-    front_end = LidarFrontEnd(FrontEndSettings(odometry=settings.odometry, corners=settings.corners, warmup_frames=settings.warmup_frames, kiss=settings.kiss, corner=settings.corner))
+    front_end = LidarFrontEnd(
+        FrontEndSettings(
+            odometry=settings.odometry,
+            corners=settings.corners,
+            warmup_frames=settings.warmup_frames,
+            kiss=settings.kiss,
+            corner=settings.corner,
+        )
+    )
     source = LidarSource(front_end)
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
 
     def stream():
         report = ReadReport()
         source.report = report
-        yield from with_front_end((m for _, m in read_stream(path, topic_list, read_settings, report)), front_end, settings.point_clouds, settings.max_frames)
+        yield from with_front_end(
+            (m for _, m in read_stream(path, topic_list, read_settings, report)),
+            front_end,
+            settings.point_clouds,
+            settings.max_frames,
+        )
         for line in report.lines():
             log.warning("%s: %s", path, line)
 
@@ -186,13 +271,21 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     sensors |= {Sensor.ODOMETRY} if settings.odometry else set()
     sensors |= {Sensor.LANDMARKS} if settings.corners else set()
     noise = NoiseSpec(
-        gyro_noise_density=settings.gyro_noise_density or (float(gyro_density) if gyro_density else 1.7e-4) if imu_topic else None,
-        accel_noise_density=settings.accel_noise_density or (float(accel_density) if accel_density else 2e-3) if imu_topic else None,
+        gyro_noise_density=settings.gyro_noise_density
+        or (float(gyro_density) if gyro_density else 1.7e-4)
+        if imu_topic
+        else None,
+        accel_noise_density=settings.accel_noise_density
+        or (float(accel_density) if accel_density else 2e-3)
+        if imu_topic
+        else None,
         gyro_bias_walk=settings.gyro_bias_walk if imu_topic else None,
         accel_bias_walk=settings.accel_bias_walk if imu_topic else None,
         gyro_bias_sigma_rad_s=settings.gyro_bias_sigma_rad_s if imu_topic else None,
         accel_bias_sigma_m_s2=settings.accel_bias_sigma_m_s2 if imu_topic else None,
-        landmark_sigma_m=settings.corner.range_sigma_m, gps_sigma_m=settings.gps_sigma_m if gps_topic else None, rate_hz=rates,
+        landmark_sigma_m=settings.corner.range_sigma_m,
+        gps_sigma_m=settings.gps_sigma_m if gps_topic else None,
+        rate_hz=rates,
     )
     return Sequence(
         name=f"bag:{argument}",
@@ -204,7 +297,12 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         initial_state=_initial_state(start_s, ground_truth.pose if ground_truth else None),
         metadata={
             "source": str(path),
-            "topics": {"lidar": topics.lidar, "imu": imu_topic, "ground_truth": topics.ground_truth, "gps": gps_topic},
+            "topics": {
+                "lidar": topics.lidar,
+                "imu": imu_topic,
+                "ground_truth": topics.ground_truth,
+                "gps": gps_topic,
+            },
             "gps_origin": list(origin) if origin else None,
             "corner_sidecar": str(sidecar) if truth is not None else None,
             "options": settings.model_dump(mode="json"),
@@ -217,4 +315,8 @@ def describe() -> list[str]:
     """Option lines for ``workbench list --verbose``."""
     from datasets.options import describe_model
 
-    return describe_model(BagOptions) + [f"kiss.{line}" for line in describe_model(KissIcpSettings)] + [f"corner.{line}" for line in describe_model(CornerConfig)]
+    return (
+        describe_model(BagOptions)
+        + [f"kiss.{line}" for line in describe_model(KissIcpSettings)]
+        + [f"corner.{line}" for line in describe_model(CornerConfig)]
+    )

@@ -21,7 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from datasets.errors import InputError
-from datasets.rotations import matrix_from_quat_wxyz, rotation_from_quat_wxyz, quat_wxyz_from_rotation
+from datasets.rotations import (
+    matrix_from_quat_wxyz,
+    quat_wxyz_from_rotation,
+    rotation_from_quat_wxyz,
+)
 from datasets.trajectory import Trajectory
 
 SIDECAR_FORMAT = "workbench-corners-1"
@@ -61,7 +65,9 @@ def read_corner_truth(path: Path) -> CornerTruth:
     try:
         payload = json.loads(Path(path).read_text())
         if payload.get("format") != SIDECAR_FORMAT:
-            raise InputError(f"{path}: not a corner sidecar (format {payload.get('format')!r}, expected {SIDECAR_FORMAT})")
+            raise InputError(
+                f"{path}: not a corner sidecar (format {payload.get('format')!r}, expected {SIDECAR_FORMAT})"
+            )
         ids, positions, normals, vectors, heights = [], [], [], [], []
         starts, ends, wall_heights = [], [], []
         slab = float(payload["slab_height_m"])
@@ -87,10 +93,18 @@ def read_corner_truth(path: Path) -> CornerTruth:
     except InputError:
         raise
     except (OSError, ValueError, KeyError, TypeError) as error:
-        raise InputError(f"{path}: unreadable corner sidecar ({type(error).__name__}: {error})") from None
+        raise InputError(
+            f"{path}: unreadable corner sidecar ({type(error).__name__}: {error})"
+        ) from None
     return CornerTruth(
-        np.concatenate(ids), np.concatenate(positions), np.concatenate(normals), np.concatenate(vectors),
-        np.concatenate(heights), np.concatenate(starts), np.concatenate(ends), np.concatenate(wall_heights),
+        np.concatenate(ids),
+        np.concatenate(positions),
+        np.concatenate(normals),
+        np.concatenate(vectors),
+        np.concatenate(heights),
+        np.concatenate(starts),
+        np.concatenate(ends),
+        np.concatenate(wall_heights),
     )
 
 
@@ -99,36 +113,61 @@ def interpolate_poses(trajectory: Trajectory, t: np.ndarray) -> tuple[np.ndarray
     from scipy.spatial.transform import Slerp
 
     t = np.clip(np.atleast_1d(np.asarray(t, dtype=float)), trajectory.t[0], trajectory.t[-1])
-    positions = np.column_stack([np.interp(t, trajectory.t, trajectory.positions[:, k]) for k in range(3)])
+    positions = np.column_stack(
+        [np.interp(t, trajectory.t, trajectory.positions[:, k]) for k in range(3)]
+    )
     slerp = Slerp(trajectory.t, rotation_from_quat_wxyz(trajectory.rotations))
     return positions, quat_wxyz_from_rotation(slerp(t))
 
 
 def _segments_cross(p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(K, S): does segment p_k-q_k properly cross wall a_s-b_s (2-D)."""
+
     def orient(u, v, w):
-        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (v[..., 1] - u[..., 1]) * (w[..., 0] - u[..., 0])
+        return (v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1]) - (v[..., 1] - u[..., 1]) * (
+            w[..., 0] - u[..., 0]
+        )
 
     p, q = p[:, None], q[:, None]
     a, b = a[None], b[None]
     return (orient(p, q, a) * orient(p, q, b) < 0) & (orient(a, b, p) * orient(a, b, q) < 0)
 
 
-def observable(truth: CornerTruth, sensor_xy: np.ndarray, sensor_z: float, min_range_m: float, max_range_m: float, azimuth_resolution_deg: float, min_face_bins: int = 8, min_incidence_deg: float = 15.0, los_margin_m: float = 0.05) -> np.ndarray:
+def observable(
+    truth: CornerTruth,
+    sensor_xy: np.ndarray,
+    sensor_z: float,
+    min_range_m: float,
+    max_range_m: float,
+    azimuth_resolution_deg: float,
+    min_face_bins: int = 8,
+    min_incidence_deg: float = 15.0,
+    los_margin_m: float = 0.05,
+) -> np.ndarray:
     """(K,) bool: which true corners the extractor could see from ``sensor_xy`` (docstring)."""
     corner_xy = truth.positions[:, :2]
     offset = sensor_xy[None] - corner_xy
     distance = np.linalg.norm(offset, axis=1)
     view = offset / np.maximum(distance, 1e-9)[:, None]
-    in_range = (distance >= min_range_m) & (distance <= max_range_m) & (truth.face_heights >= sensor_z)
+    in_range = (
+        (distance >= min_range_m) & (distance <= max_range_m) & (truth.face_heights >= sensor_z)
+    )
     stop = corner_xy + los_margin_m * view
     blocking = truth.wall_height[None] >= sensor_z
-    clear = ~np.any(_segments_cross(np.broadcast_to(sensor_xy, corner_xy.shape), stop, truth.wall_start, truth.wall_end) & blocking, axis=1)
+    clear = ~np.any(
+        _segments_cross(
+            np.broadcast_to(sensor_xy, corner_xy.shape), stop, truth.wall_start, truth.wall_end
+        )
+        & blocking,
+        axis=1,
+    )
     incidence = np.einsum("kd,kfd->kf", view, truth.face_normals)
     facing = np.all(incidence >= np.sin(np.deg2rad(min_incidence_deg)), axis=1)
     far_end = corner_xy[:, None] + truth.face_vectors - sensor_xy[None, None]
     near_end = -offset[:, None]
-    cosine = np.einsum("kfd,kfd->kf", far_end, np.broadcast_to(near_end, far_end.shape)) / (np.linalg.norm(far_end, axis=2) * distance[:, None] + 1e-12)
+    cosine = np.einsum("kfd,kfd->kf", far_end, np.broadcast_to(near_end, far_end.shape)) / (
+        np.linalg.norm(far_end, axis=2) * distance[:, None] + 1e-12
+    )
     span_deg = np.rad2deg(np.arccos(np.clip(cosine, -1.0, 1.0)))
     wide = np.all(span_deg >= min_face_bins * azimuth_resolution_deg, axis=1)
     return in_range & clear & facing & wide
@@ -144,7 +183,16 @@ class FrameScore:
     recalled: int
 
 
-def score_frame(truth: CornerTruth, detections_body: np.ndarray, position: np.ndarray, quat_wxyz: np.ndarray, min_range_m: float, max_range_m: float, azimuth_resolution_deg: float, tolerance_m: float = 0.1) -> FrameScore:
+def score_frame(
+    truth: CornerTruth,
+    detections_body: np.ndarray,
+    position: np.ndarray,
+    quat_wxyz: np.ndarray,
+    min_range_m: float,
+    max_range_m: float,
+    azimuth_resolution_deg: float,
+    tolerance_m: float = 0.1,
+) -> FrameScore:
     """Score body-frame detections (k, 2 or 3) given the true pose (position (3,), quaternion)."""
     rotation = matrix_from_quat_wxyz(quat_wxyz)
     truth_body = (truth.positions - position) @ rotation  # R^T (rho - r), row-wise
@@ -158,7 +206,15 @@ def score_frame(truth: CornerTruth, detections_body: np.ndarray, position: np.nd
     return FrameScore(len(detections_body), correct, int(seen.sum()), recalled)
 
 
-def score_corners(frames: list[tuple[float, np.ndarray]], truth: CornerTruth, trajectory: Trajectory, min_range_m: float, max_range_m: float, azimuth_resolution_deg: float, tolerance_m: float = 0.1) -> dict[str, float | int | None]:
+def score_corners(
+    frames: list[tuple[float, np.ndarray]],
+    truth: CornerTruth,
+    trajectory: Trajectory,
+    min_range_m: float,
+    max_range_m: float,
+    azimuth_resolution_deg: float,
+    tolerance_m: float = 0.1,
+) -> dict[str, float | int | None]:
     """Precision and recall over frames of ``(t, body-frame detections (k, d))``, using the
     true pose at each ``t`` (frames outside the ground truth's time span are left out).
 
@@ -172,7 +228,16 @@ def score_corners(frames: list[tuple[float, np.ndarray]], truth: CornerTruth, tr
         if not trajectory.t[0] <= t <= trajectory.t[-1]:
             continue
         positions, quats = interpolate_poses(trajectory, np.array([t]))
-        score = score_frame(truth, np.asarray(detections), positions[0], quats[0], min_range_m, max_range_m, azimuth_resolution_deg, tolerance_m)
+        score = score_frame(
+            truth,
+            np.asarray(detections),
+            positions[0],
+            quats[0],
+            min_range_m,
+            max_range_m,
+            azimuth_resolution_deg,
+            tolerance_m,
+        )
         totals += [score.detections, score.correct, score.observable, score.recalled]
         scored += 1
     detections, correct, seen, recalled = (int(v) for v in totals)
@@ -188,7 +253,12 @@ def score_corners(frames: list[tuple[float, np.ndarray]], truth: CornerTruth, tr
     }
 
 
-def true_corner_ids(frames: list[tuple[float, np.ndarray]], truth: CornerTruth, trajectory: Trajectory, tolerance_m: float = 0.1) -> tuple[tuple[float, np.ndarray], ...]:
+def true_corner_ids(
+    frames: list[tuple[float, np.ndarray]],
+    truth: CornerTruth,
+    trajectory: Trajectory,
+    tolerance_m: float = 0.1,
+) -> tuple[tuple[float, np.ndarray], ...]:
     """``GroundTruth.scan_ids`` for front-end corner scans: per frame ``(t, ids (k,))`` with
     the id of the true corner within ``tolerance_m`` (horizontally) of each detection, -1 for
     a detection near none (unknown to the association scoring). Frames without detections
@@ -202,12 +272,19 @@ def true_corner_ids(frames: list[tuple[float, np.ndarray]], truth: CornerTruth, 
         truth_body = (truth.positions - positions[0]) @ matrix_from_quat_wxyz(quats[0])
         gaps = np.linalg.norm(detections[:, None, :2] - truth_body[None, :, :2], axis=2)
         nearest = np.argmin(gaps, axis=1)
-        ids = np.where(gaps[np.arange(len(detections)), nearest] <= tolerance_m, truth.ids[nearest], -1)
+        ids = np.where(
+            gaps[np.arange(len(detections)), nearest] <= tolerance_m, truth.ids[nearest], -1
+        )
         result.append((float(t), ids.astype(int)))
     return tuple(result)
 
 
-def corner_error_statistics(frames: list[tuple[float, np.ndarray, np.ndarray]], truth: CornerTruth, trajectory: Trajectory, tolerance_m: float = 0.1) -> dict[str, float | int | None]:
+def corner_error_statistics(
+    frames: list[tuple[float, np.ndarray, np.ndarray]],
+    truth: CornerTruth,
+    trajectory: Trajectory,
+    tolerance_m: float = 0.1,
+) -> dict[str, float | int | None]:
     """Horizontal errors of the correct detections (within ``tolerance_m`` of a true corner)
     against their covariances, over frames of ``(t, points (k, d), covariances (k, d, d))``.
 
@@ -230,7 +307,13 @@ def corner_error_statistics(frames: list[tuple[float, np.ndarray, np.ndarray]], 
         errors.append(error[good])
         covariances.append(np.asarray(covs)[good][:, :2, :2])
     if not errors or sum(len(e) for e in errors) == 0:
-        return {"corner_error_rms_m": None, "corner_predicted_rms_m": None, "corner_nees_mean": None, "corner_nees_median": None, "corner_errors": 0}
+        return {
+            "corner_error_rms_m": None,
+            "corner_predicted_rms_m": None,
+            "corner_nees_mean": None,
+            "corner_nees_median": None,
+            "corner_errors": 0,
+        }
     error, covariance = np.concatenate(errors), np.concatenate(covariances)
     nees = np.einsum("ni,nij,nj->n", error, np.linalg.inv(covariance), error)
     return {

@@ -51,23 +51,51 @@ class CornerConfig(BaseModel):
     slab_half_thickness_m: float = Field(0.25, gt=0, description="half thickness of the slab [m]")
     min_range_m: float = Field(0.5, ge=0, description="nearest horizontal range used [m]")
     max_range_m: float = Field(15.0, gt=0, description="farthest horizontal range used [m]")
-    azimuth_resolution_deg: float = Field(0.25, gt=0, description="azimuth bin of the 2-D scan [deg]")
+    azimuth_resolution_deg: float = Field(
+        0.25, gt=0, description="azimuth bin of the 2-D scan [deg]"
+    )
     range_sigma_m: float = Field(0.02, gt=0, description="range noise std of a point [m]")
     bearing_sigma_rad: float = Field(0.003, gt=0, description="bearing noise std of a point [rad]")
-    break_distance_m: float = Field(0.2, gt=0, description="cluster break: fixed part of the jump [m]")
-    break_range_ratio: float = Field(0.05, ge=0, description="cluster break: part of the jump proportional to range")
+    break_distance_m: float = Field(
+        0.2, gt=0, description="cluster break: fixed part of the jump [m]"
+    )
+    break_range_ratio: float = Field(
+        0.05, ge=0, description="cluster break: part of the jump proportional to range"
+    )
     max_gap_bins: int = Field(4, ge=1, description="cluster break: this many empty azimuth bins")
-    split_threshold_m: float = Field(0.06, gt=0, description="split a segment whose farthest point is this far from its chord [m]")
-    merge_rms_m: float = Field(0.03, gt=0, description="merge adjacent segments whose joint line fit RMS is below this [m]")
+    split_threshold_m: float = Field(
+        0.06,
+        gt=0,
+        description="split a segment whose farthest point is this far from its chord [m]",
+    )
+    merge_rms_m: float = Field(
+        0.03, gt=0, description="merge adjacent segments whose joint line fit RMS is below this [m]"
+    )
     min_segment_points: int = Field(6, ge=3, description="fewest points of a line segment")
     min_segment_length_m: float = Field(0.25, gt=0, description="shortest line segment [m]")
-    end_trim_points: int = Field(1, ge=0, description="points left out of the line fit at each segment end")
-    min_corner_angle_deg: float = Field(35.0, gt=0, lt=90, description="least angle between the two lines of a corner [deg]")
-    max_corner_gap_m: float = Field(0.3, gt=0, description="farthest the intersection may be from either segment end [m]")
-    directions: bool = Field(False, description="also output the two unit line directions of every corner")
-    dimension: int = Field(3, ge=2, le=3, description="2: planar corners; 3: corners at the slab height")
-    slab_sigma_m: float | None = Field(None, description="std of a 3-D corner's z [m] (default: half thickness / sqrt(3))")
-    model_sigma_m: float = Field(0.015, ge=0, description="isotropic horizontal std added to every corner for what the point noise model leaves out (deskew and odometry error, beam width) [m]")
+    end_trim_points: int = Field(
+        1, ge=0, description="points left out of the line fit at each segment end"
+    )
+    min_corner_angle_deg: float = Field(
+        35.0, gt=0, lt=90, description="least angle between the two lines of a corner [deg]"
+    )
+    max_corner_gap_m: float = Field(
+        0.3, gt=0, description="farthest the intersection may be from either segment end [m]"
+    )
+    directions: bool = Field(
+        False, description="also output the two unit line directions of every corner"
+    )
+    dimension: int = Field(
+        3, ge=2, le=3, description="2: planar corners; 3: corners at the slab height"
+    )
+    slab_sigma_m: float | None = Field(
+        None, description="std of a 3-D corner's z [m] (default: half thickness / sqrt(3))"
+    )
+    model_sigma_m: float = Field(
+        0.015,
+        ge=0,
+        description="isotropic horizontal std added to every corner for what the point noise model leaves out (deskew and odometry error, beam width) [m]",
+    )
 
 
 @dataclass(frozen=True)
@@ -88,7 +116,9 @@ class Corners:
 
     def scan(self, t: float) -> LandmarkScan:
         """As a ``LandmarkScan`` at time ``t`` (no ids: the front end does not know them)."""
-        return LandmarkScan(t=t, points=self.points, covariances=self.covariances, directions=self.directions)
+        return LandmarkScan(
+            t=t, points=self.points, covariances=self.covariances, directions=self.directions
+        )
 
 
 def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> np.ndarray:
@@ -100,7 +130,9 @@ def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> np.ndarray
     rng = np.hypot(slab[:, 0], slab[:, 1])
     inside = (rng >= config.min_range_m) & (rng <= config.max_range_m)
     keep, slab, offset = keep[inside], slab[inside], offset[keep[inside]]
-    bins = np.floor((np.arctan2(slab[:, 1], slab[:, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)).astype(np.int64)
+    bins = np.floor(
+        (np.arctan2(slab[:, 1], slab[:, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)
+    ).astype(np.int64)
     # per bin, the point nearest the slab centre (the most horizontal ring): unlike the
     # nearest point, it does not bias ranges short when several rings share a bin
     # one float sort on bin + fraction (offset / thickness < 1) instead of a lexsort: 8x faster
@@ -113,7 +145,9 @@ def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> np.ndarray
 def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
     """The azimuth scan: xy (m, 2) [m] ordered by azimuth, and their bin indices (m,)."""
     xy = points[azimuth_scan_indices(points, config), :2]
-    bins = np.floor((np.arctan2(xy[:, 1], xy[:, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)).astype(np.int64)
+    bins = np.floor(
+        (np.arctan2(xy[:, 1], xy[:, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)
+    ).astype(np.int64)
     return xy, bins
 
 
@@ -124,7 +158,9 @@ def _cluster_breaks(xy: np.ndarray, bins: np.ndarray, config: CornerConfig) -> n
     jump = np.linalg.norm(xy[following] - xy, axis=1)
     rng = np.minimum(np.hypot(*xy.T), np.hypot(*xy[following].T))
     gap = np.mod(bins[following] - bins, total_bins)
-    return (jump > config.break_distance_m + config.break_range_ratio * rng) | (gap > config.max_gap_bins)
+    return (jump > config.break_distance_m + config.break_range_ratio * rng) | (
+        gap > config.max_gap_bins
+    )
 
 
 def _flat_indices(starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -135,7 +171,9 @@ def _flat_indices(starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.
     return np.arange(lengths.sum()) - offsets[owners] + starts[owners], owners
 
 
-def split_segments(xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, threshold_m: float, max_levels: int = 64) -> tuple[np.ndarray, np.ndarray]:
+def split_segments(
+    xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, threshold_m: float, max_levels: int = 64
+) -> tuple[np.ndarray, np.ndarray]:
     """Iterative end-point fit (the split step of Pavlidis and Horowitz), all segments of a
     level at once. Segments are inclusive index ranges; the split point ends one segment
     and starts the next."""
@@ -148,7 +186,9 @@ def split_segments(xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, thresho
         chord = b - a
         length = np.linalg.norm(chord, axis=1)
         offset = xy[index] - a
-        distance = np.abs(chord[:, 0] * offset[:, 1] - chord[:, 1] * offset[:, 0]) / np.maximum(length, 1e-12)
+        distance = np.abs(chord[:, 0] * offset[:, 1] - chord[:, 1] * offset[:, 0]) / np.maximum(
+            length, 1e-12
+        )
         worst = np.full(len(starts), -1.0)
         np.maximum.at(worst, owner, distance)
         is_worst = distance == worst[owner]
@@ -180,10 +220,12 @@ class _Moments:
     sxy: np.ndarray
     syy: np.ndarray
 
-    def __add__(self, other: "_Moments") -> "_Moments":
-        return _Moments(*(getattr(self, k) + getattr(other, k) for k in ("n", "sx", "sy", "sxx", "sxy", "syy")))
+    def __add__(self, other: _Moments) -> _Moments:
+        return _Moments(
+            *(getattr(self, k) + getattr(other, k) for k in ("n", "sx", "sy", "sxx", "sxy", "syy"))
+        )
 
-    def take(self, idx: np.ndarray) -> "_Moments":
+    def take(self, idx: np.ndarray) -> _Moments:
         return _Moments(*(getattr(self, k)[idx] for k in ("n", "sx", "sy", "sxx", "sxy", "syy")))
 
     def line(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -205,10 +247,19 @@ def _moments(xy: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> _Moments:
     def total(values: np.ndarray) -> np.ndarray:
         return np.bincount(owner, weights=values, minlength=count)
 
-    return _Moments(total(np.ones(len(p))), total(p[:, 0]), total(p[:, 1]), total(p[:, 0] ** 2), total(p[:, 0] * p[:, 1]), total(p[:, 1] ** 2))
+    return _Moments(
+        total(np.ones(len(p))),
+        total(p[:, 0]),
+        total(p[:, 1]),
+        total(p[:, 0] ** 2),
+        total(p[:, 0] * p[:, 1]),
+        total(p[:, 1] ** 2),
+    )
 
 
-def merge_segments(xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, cluster: np.ndarray, rms_m: float) -> tuple[np.ndarray, np.ndarray]:
+def merge_segments(
+    xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, cluster: np.ndarray, rms_m: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Merge adjacent segments of one cluster whose joint line fit has RMS below ``rms_m``
     (the merge step of Pavlidis and Horowitz); greedy, best pair first, over segments."""
     starts, ends = starts.copy(), ends.copy()
@@ -227,7 +278,9 @@ def merge_segments(xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, cluster
     return starts, ends
 
 
-def point_perpendicular_variance(xy: np.ndarray, normal: np.ndarray, config: CornerConfig) -> np.ndarray:
+def point_perpendicular_variance(
+    xy: np.ndarray, normal: np.ndarray, config: CornerConfig
+) -> np.ndarray:
     """Variance [m^2] of each point across its line, from range/bearing noise:
     ``n^T (s_r^2 u u^T + r^2 s_b^2 v v^T) n`` with u radial, v tangential unit vectors."""
     r = np.hypot(xy[:, 0], xy[:, 1])
@@ -237,7 +290,14 @@ def point_perpendicular_variance(xy: np.ndarray, normal: np.ndarray, config: Cor
     return config.range_sigma_m**2 * nu**2 + (r * config.bearing_sigma_rad) ** 2 * nv**2
 
 
-def line_parameter_covariance(xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, centroid: np.ndarray, direction: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def line_parameter_covariance(
+    xy: np.ndarray,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    centroid: np.ndarray,
+    direction: np.ndarray,
+    config: CornerConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """First-order covariance of an unweighted least-squares line ``d = a + b s`` in the
     line's own frame (s along ``direction`` from the centroid, d along the normal), with
     heteroscedastic perpendicular noise ``sigma_i^2`` (sandwich form):
@@ -260,7 +320,9 @@ def line_parameter_covariance(xy: np.ndarray, starts: np.ndarray, ends: np.ndarr
     return total(sigma2) / n**2, total(sigma2 * s * s) / sum_s2**2, total(sigma2 * s) / (n * sum_s2)
 
 
-def corner_covariance(normal_1: np.ndarray, normal_2: np.ndarray, var_v1: np.ndarray, var_v2: np.ndarray) -> np.ndarray:
+def corner_covariance(
+    normal_1: np.ndarray, normal_2: np.ndarray, var_v1: np.ndarray, var_v2: np.ndarray
+) -> np.ndarray:
     """Covariance (k, 2, 2) of the intersection x of two lines ``n_k^T (x - c_k) = 0``.
 
     Perturbing line k by offset ``da_k`` and rotation ``db_k`` moves it, at the corner, by
@@ -290,14 +352,23 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
     small (about 3 mm at 7 m with 2 mrad bearing noise, ``tests/test_corners.py``).
     """
     d = config.dimension
-    empty = Corners(np.zeros((0, d)), np.zeros((0, d, d)), np.zeros((0, 2, d)) if config.directions else None, np.zeros((0, 2, 2)))
+    empty = Corners(
+        np.zeros((0, d)),
+        np.zeros((0, d, d)),
+        np.zeros((0, 2, d)) if config.directions else None,
+        np.zeros((0, 2, 2)),
+    )
     xy, bins = azimuth_scan(np.asarray(points, dtype=float), config)
     if len(xy) < 2 * config.min_segment_points:
         return empty
     breaks = _cluster_breaks(xy, bins, config)
     if np.any(breaks):  # start the circular scan right after a break
         shift = int(np.flatnonzero(breaks)[0]) + 1
-        xy, bins, breaks = np.roll(xy, -shift, axis=0), np.roll(bins, -shift), np.roll(breaks, -shift)
+        xy, bins, breaks = (
+            np.roll(xy, -shift, axis=0),
+            np.roll(bins, -shift),
+            np.roll(breaks, -shift),
+        )
     cluster = np.concatenate([[0], np.cumsum(breaks[:-1])])
     boundaries = np.flatnonzero(np.diff(cluster)) + 1
     starts = np.concatenate([[0], boundaries])
@@ -311,16 +382,26 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
     usable = fit_ends - fit_starts + 1 >= config.min_segment_points
     fit_starts, fit_ends = np.where(usable, fit_starts, starts), np.where(usable, fit_ends, ends)
     centroid, direction, _ = _moments(xy, fit_starts, fit_ends).line()
-    var_a, var_b, cov_ab = line_parameter_covariance(xy, fit_starts, fit_ends, centroid, direction, config)
+    var_a, var_b, cov_ab = line_parameter_covariance(
+        xy, fit_starts, fit_ends, centroid, direction, config
+    )
     first_along = np.sum((xy[starts] - centroid) * direction, axis=1)
     last_along = np.sum((xy[ends] - centroid) * direction, axis=1)
-    segment_ends = np.stack([centroid + first_along[:, None] * direction, centroid + last_along[:, None] * direction], axis=1)
-    valid = (ends - starts + 1 >= config.min_segment_points) & (np.abs(last_along - first_along) >= config.min_segment_length_m)
+    segment_ends = np.stack(
+        [centroid + first_along[:, None] * direction, centroid + last_along[:, None] * direction],
+        axis=1,
+    )
+    valid = (ends - starts + 1 >= config.min_segment_points) & (
+        np.abs(last_along - first_along) >= config.min_segment_length_m
+    )
 
     left, right = np.arange(len(starts) - 1), np.arange(1, len(starts))
-    sine = np.abs(direction[left, 0] * direction[right, 1] - direction[left, 1] * direction[right, 0])
+    sine = np.abs(
+        direction[left, 0] * direction[right, 1] - direction[left, 1] * direction[right, 0]
+    )
     candidate = (
-        valid[left] & valid[right]
+        valid[left]
+        & valid[right]
         & (cluster[starts[left]] == cluster[starts[right]])
         & (starts[right] - ends[left] <= 1)
         & (sine >= np.sin(np.deg2rad(config.min_corner_angle_deg)))
@@ -330,7 +411,9 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
         return empty
     normal = np.column_stack([-direction[:, 1], direction[:, 0]])
     n1, n2 = normal[left], normal[right]
-    rhs = np.column_stack([np.sum(n1 * centroid[left], axis=1), np.sum(n2 * centroid[right], axis=1)])
+    rhs = np.column_stack(
+        [np.sum(n1 * centroid[left], axis=1), np.sum(n2 * centroid[right], axis=1)]
+    )
     corner = np.linalg.solve(np.stack([n1, n2], axis=1), rhs[..., None])[..., 0]
     gap_left = np.linalg.norm(corner - segment_ends[left, 1], axis=1)
     gap_right = np.linalg.norm(corner - segment_ends[right, 0], axis=1)
@@ -342,12 +425,20 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
     s2 = np.sum((corner - centroid[right]) * direction[right], axis=1)
     var_v1 = var_a[left] + 2.0 * s1 * cov_ab[left] + s1**2 * var_b[left]
     var_v2 = var_a[right] + 2.0 * s2 * cov_ab[right] + s2**2 * var_b[right]
-    covariance_2d = corner_covariance(normal[left], normal[right], var_v1, var_v2) + config.model_sigma_m**2 * np.eye(2)
+    covariance_2d = corner_covariance(
+        normal[left], normal[right], var_v1, var_v2
+    ) + config.model_sigma_m**2 * np.eye(2)
 
     directions = None
     if config.directions:
-        toward_1 = np.sign(np.sum((centroid[left] - corner) * direction[left], axis=1))[:, None] * direction[left]
-        toward_2 = np.sign(np.sum((centroid[right] - corner) * direction[right], axis=1))[:, None] * direction[right]
+        toward_1 = (
+            np.sign(np.sum((centroid[left] - corner) * direction[left], axis=1))[:, None]
+            * direction[left]
+        )
+        toward_2 = (
+            np.sign(np.sum((centroid[right] - corner) * direction[right], axis=1))[:, None]
+            * direction[right]
+        )
         directions = np.stack([toward_1, toward_2], axis=1)
     if d == 2:
         return Corners(corner, covariance_2d, directions, segment_ends[valid])
@@ -355,7 +446,11 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
     points_3d = np.column_stack([corner, np.full(count, config.slab_height_m)])
     covariance = np.zeros((count, 3, 3))
     covariance[:, :2, :2] = covariance_2d
-    slab_sigma = config.slab_sigma_m if config.slab_sigma_m is not None else config.slab_half_thickness_m / np.sqrt(3.0)
+    slab_sigma = (
+        config.slab_sigma_m
+        if config.slab_sigma_m is not None
+        else config.slab_half_thickness_m / np.sqrt(3.0)
+    )
     covariance[:, 2, 2] = slab_sigma**2
     if directions is not None:
         directions = np.concatenate([directions, np.zeros((count, 2, 1))], axis=2)

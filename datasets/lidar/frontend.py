@@ -18,7 +18,12 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, extract_corners
-from datasets.lidar.kiss_icp_odometry import KissIcpOdometry, KissIcpSettings, deskew_to_end, normalized_point_times
+from datasets.lidar.kiss_icp_odometry import (
+    KissIcpOdometry,
+    KissIcpSettings,
+    deskew_to_end,
+    normalized_point_times,
+)
 from datasets.measurements import Odometry, PointCloud
 from datasets.trajectory import Trajectory
 
@@ -30,10 +35,15 @@ class FrontEndSettings(BaseModel):
 
     odometry: bool = Field(True, description="run KISS-ICP")
     corners: bool = Field(True, description="extract corner landmarks")
-    warmup_frames: int = Field(1, ge=0, description="withhold the corners of this many first frames of clouds with per-point times (no motion estimate to deskew them with yet)")
+    warmup_frames: int = Field(
+        1,
+        ge=0,
+        description="withhold the corners of this many first frames of clouds with per-point times (no motion estimate to deskew them with yet)",
+    )
     kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings")
-    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings")
-
+    corner: CornerConfig = Field(
+        default_factory=CornerConfig, description="corner extractor settings"
+    )
 
 
 class LidarSourceOptions(BaseModel):
@@ -42,14 +52,24 @@ class LidarSourceOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    point_time_unit: str = Field("auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times")
+    point_time_unit: str = Field(
+        "auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times"
+    )
     point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
     max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
     odometry: bool = Field(True, description="KISS-ICP odometry")
     corners: bool = Field(True, description="corner landmarks")
-    warmup_frames: int = Field(1, ge=0, description="withhold the corners of this many first frames (not yet deskewable)")
-    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)")
-    corner: CornerConfig = Field(default_factory=CornerConfig, description="corner extractor settings, as corner.KEY=VALUE (listed below)")
+    warmup_frames: int = Field(
+        1, ge=0, description="withhold the corners of this many first frames (not yet deskewable)"
+    )
+    kiss: KissIcpSettings = Field(
+        default_factory=KissIcpSettings,
+        description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)",
+    )
+    corner: CornerConfig = Field(
+        default_factory=CornerConfig,
+        description="corner extractor settings, as corner.KEY=VALUE (listed below)",
+    )
 
 
 @dataclass(frozen=True)
@@ -89,10 +109,14 @@ class LidarFrontEnd:
         if index < len(self.frames):
             cached = self.frames[index]
             if abs(cached.cloud_t - cloud.t) > 1e-9:
-                raise InputError(f"lidar front end: frame {index} has stamp {cloud.t:.9f}, cached {cached.cloud_t:.9f} (the source changed)")
+                raise InputError(
+                    f"lidar front end: frame {index} has stamp {cloud.t:.9f}, cached {cached.cloud_t:.9f} (the source changed)"
+                )
             return cached
         if index != len(self.frames):
-            raise InputError(f"lidar front end: frame {index} requested before frame {len(self.frames)}")
+            raise InputError(
+                f"lidar front end: frame {index} requested before frame {len(self.frames)}"
+            )
         started = time.perf_counter()
         pose, odometry, t = None, None, cloud.t
         if self._odometry is not None:
@@ -100,9 +124,27 @@ class LidarFrontEnd:
             pose, odometry, t = registered.pose, registered.odometry, registered.t
         icp_done = time.perf_counter()
         corners = self._corners(cloud, odometry) if self.settings.corners else None
-        if corners is not None and cloud.point_times is not None and len(self.frames) < self.settings.warmup_frames:
-            corners = replace(corners, points=corners.points[:0], covariances=corners.covariances[:0], directions=None if corners.directions is None else corners.directions[:0])
-        result = FrontEndFrame(cloud.t, t, len(cloud.points), pose, odometry, corners, icp_done - started, time.perf_counter() - icp_done)
+        if (
+            corners is not None
+            and cloud.point_times is not None
+            and len(self.frames) < self.settings.warmup_frames
+        ):
+            corners = replace(
+                corners,
+                points=corners.points[:0],
+                covariances=corners.covariances[:0],
+                directions=None if corners.directions is None else corners.directions[:0],
+            )
+        result = FrontEndFrame(
+            cloud.t,
+            t,
+            len(cloud.points),
+            pose,
+            odometry,
+            corners,
+            icp_done - started,
+            time.perf_counter() - icp_done,
+        )
         self.frames.append(result)
         return result
 
@@ -124,7 +166,9 @@ class LidarFrontEnd:
         return None if self._odometry is None else self._odometry.trajectory()
 
 
-def with_front_end(measurements, front_end: LidarFrontEnd, emit_clouds: bool = True, max_frames: int | None = None):
+def with_front_end(
+    measurements, front_end: LidarFrontEnd, emit_clouds: bool = True, max_frames: int | None = None
+):
     """Interleave the front end's odometry and corner scans into a stamp-ordered stream.
 
     A frame's outputs are stamped at or after its cloud's stamp, and every later input is

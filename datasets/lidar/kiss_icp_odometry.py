@@ -30,14 +30,26 @@ class KissIcpSettings(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    max_range_m: float = Field(30.0, gt=0, description="farthest point used [m] (indoor/corridor default; outdoor bags: 100)")
+    max_range_m: float = Field(
+        30.0,
+        gt=0,
+        description="farthest point used [m] (indoor/corridor default; outdoor bags: 100)",
+    )
     min_range_m: float = Field(0.5, ge=0, description="nearest point used [m]")
-    voxel_size_m: float | None = Field(None, gt=0, description="map voxel [m] (default: max_range / 100, as KISS-ICP)")
-    deskew: bool = Field(True, description="motion-compensate with per-point times when the cloud has them")
+    voxel_size_m: float | None = Field(
+        None, gt=0, description="map voxel [m] (default: max_range / 100, as KISS-ICP)"
+    )
+    deskew: bool = Field(
+        True, description="motion-compensate with per-point times when the cloud has them"
+    )
     max_points_per_voxel: int = Field(20, ge=1, description="KISS-ICP map density")
     max_num_threads: int = Field(0, ge=0, description="threads (0: automatic)")
-    rotation_sigma_rad: float = Field(0.002, gt=0, description="std of each rotation component of a frame-to-frame odometry [rad]")
-    translation_sigma_m: float = Field(0.02, gt=0, description="std of each translation component of a frame-to-frame odometry [m]")
+    rotation_sigma_rad: float = Field(
+        0.002, gt=0, description="std of each rotation component of a frame-to-frame odometry [rad]"
+    )
+    translation_sigma_m: float = Field(
+        0.02, gt=0, description="std of each translation component of a frame-to-frame odometry [m]"
+    )
 
     def kiss_config(self):
         """The equivalent ``kiss_icp.config.KISSConfig``."""
@@ -47,7 +59,9 @@ class KissIcpSettings(BaseModel):
         config.data.max_range = self.max_range_m
         config.data.min_range = self.min_range_m
         config.data.deskew = self.deskew
-        config.mapping.voxel_size = self.voxel_size_m if self.voxel_size_m is not None else self.max_range_m / 100.0
+        config.mapping.voxel_size = (
+            self.voxel_size_m if self.voxel_size_m is not None else self.max_range_m / 100.0
+        )
         config.mapping.max_points_per_voxel = self.max_points_per_voxel
         config.registration.max_num_threads = self.max_num_threads
         return config
@@ -91,14 +105,20 @@ class KissIcpOdometry:
         self._icp = KissICP(settings.kiss_config())
         self._times: list[float] = []
         self._poses: list[np.ndarray] = []
-        covariance = np.diag([settings.rotation_sigma_rad**2] * 3 + [settings.translation_sigma_m**2] * 3)
+        covariance = np.diag(
+            [settings.rotation_sigma_rad**2] * 3 + [settings.translation_sigma_m**2] * 3
+        )
         self._covariance = covariance
 
     def register(self, cloud: PointCloud) -> RegisteredFrame:
         """Register one cloud (finite points, non-decreasing times across calls)."""
-        timestamps = normalized_point_times(cloud.point_times) if self.settings.deskew else np.zeros(0)
+        timestamps = (
+            normalized_point_times(cloud.point_times) if self.settings.deskew else np.zeros(0)
+        )
         t = cloud.t + (float(np.max(cloud.point_times)) if timestamps.size else 0.0)
-        frame, _ = self._icp.register_frame(np.ascontiguousarray(cloud.points, dtype=np.float64), timestamps)
+        frame, _ = self._icp.register_frame(
+            np.ascontiguousarray(cloud.points, dtype=np.float64), timestamps
+        )
         pose = np.array(self._icp.last_pose, dtype=float)
         odometry = None
         if self._poses:
@@ -135,7 +155,9 @@ def se3_log(pose: np.ndarray) -> np.ndarray:
         v_inverse = np.eye(3) - 0.5 * w
     else:
         half = 0.5 * theta
-        v_inverse = np.eye(3) - 0.5 * w + (1.0 - half * np.cos(half) / np.sin(half)) / theta**2 * (w @ w)
+        v_inverse = (
+            np.eye(3) - 0.5 * w + (1.0 - half * np.cos(half) / np.sin(half)) / theta**2 * (w @ w)
+        )
     return np.concatenate([v_inverse @ pose[:3, 3], phi])
 
 
@@ -144,7 +166,9 @@ def _hat(vector: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-def deskew_to_end(points: np.ndarray, normalized_times: np.ndarray, delta: np.ndarray) -> np.ndarray:
+def deskew_to_end(
+    points: np.ndarray, normalized_times: np.ndarray, delta: np.ndarray
+) -> np.ndarray:
     """Move points to the sweep end under constant velocity, as KISS-ICP's deskew does
     (``p' = exp((s - 1) xi) p`` with ``xi = log(delta)``, s the normalized time), but with
     the frame's own estimated motion ``delta`` (previous pose^-1 @ this pose) instead of the

@@ -57,9 +57,13 @@ class SimulatedData:
 def _inertial_samples(data: SimulatedData) -> list[Measurement]:
     times = data.kinematics.t
     if data.inertial.accel is None:
-        return [GyroSample(t=float(t), rate=data.inertial.gyro[i].copy()) for i, t in enumerate(times)]
+        return [
+            GyroSample(t=float(t), rate=data.inertial.gyro[i].copy()) for i, t in enumerate(times)
+        ]
     return [
-        ImuSample(t=float(t), gyro=data.inertial.gyro[i].copy(), accel=data.inertial.accel[i].copy())
+        ImuSample(
+            t=float(t), gyro=data.inertial.gyro[i].copy(), accel=data.inertial.accel[i].copy()
+        )
         for i, t in enumerate(times)
     ]
 
@@ -101,12 +105,20 @@ def ground_truth(data: SimulatedData) -> GroundTruth:
         BlockName.GYRO_BIAS: StateBlock(t=t, values=data.inertial.gyro_bias, frame=Frame.BODY),
     }
     if data.inertial.accel_bias is not None:
-        blocks[BlockName.ACCEL_BIAS] = StateBlock(t=t, values=data.inertial.accel_bias, frame=Frame.BODY)
+        blocks[BlockName.ACCEL_BIAS] = StateBlock(
+            t=t, values=data.inertial.accel_bias, frame=Frame.BODY
+        )
     return GroundTruth(
-        history=StateHistory(pose=Trajectory(t=t, positions=kinematics.position, rotations=rotations), blocks=blocks),
-        landmarks=LandmarkMap(ids=data.landmark_ids, positions=data.landmark_positions, frame=Frame.WORLD),
+        history=StateHistory(
+            pose=Trajectory(t=t, positions=kinematics.position, rotations=rotations), blocks=blocks
+        ),
+        landmarks=LandmarkMap(
+            ids=data.landmark_ids, positions=data.landmark_positions, frame=Frame.WORLD
+        ),
         body_velocity=StateBlock(t=t, values=kinematics.body_velocity(), frame=Frame.BODY),
-        scan_ids=tuple((float(time), ids.copy()) for time, ids in zip(data.scans.t, data.scans.ids)),
+        scan_ids=tuple(
+            (float(time), ids.copy()) for time, ids in zip(data.scans.t, data.scans.ids)
+        ),
     )
 
 
@@ -120,7 +132,12 @@ class InitialSigmas:
 
 
 def initial_state_draw(
-    pose: Trajectory, velocity: np.ndarray, rng: np.random.Generator, drawn: float, stated: float, sigmas: InitialSigmas
+    pose: Trajectory,
+    velocity: np.ndarray,
+    rng: np.random.Generator,
+    drawn: float,
+    stated: float,
+    sigmas: InitialSigmas,
 ) -> InitialState:
     """The initial state as a draw from its stated distribution around the true start.
 
@@ -174,7 +191,9 @@ def build_sequence(
     planar = data.inertial.accel is None
     truth = ground_truth(data)
     order = data.anchor_order
-    initial_state = initial_state_draw(truth.history.pose, kinematics.velocity[0], initial_rng, drawn, stated, initial_sigmas)
+    initial_state = initial_state_draw(
+        truth.history.pose, kinematics.velocity[0], initial_rng, drawn, stated, initial_sigmas
+    )
     return Sequence(
         name=name,
         dimension=kinematics.dimension,
@@ -184,7 +203,9 @@ def build_sequence(
         noise=noise,
         initial_state=initial_state,
         known_landmarks=LandmarkMap(
-            ids=data.landmark_ids[order].copy(), positions=data.landmark_positions[order].copy(), frame=Frame.WORLD
+            ids=data.landmark_ids[order].copy(),
+            positions=data.landmark_positions[order].copy(),
+            frame=Frame.WORLD,
         ),
         metadata=metadata,
     )

@@ -30,7 +30,9 @@ def sequence_figures(sequence: Sequence) -> dict[str, float | int]:
         "visible_mean": round(float(np.mean(counts)), 2),
         "visible_min": int(np.min(counts)),
         "visible_max": int(np.max(counts)),
-        "start_to_end_m": round(float(np.linalg.norm(truth.pose.positions[-1] - truth.pose.positions[0])), 2),
+        "start_to_end_m": round(
+            float(np.linalg.norm(truth.pose.positions[-1] - truth.pose.positions[0])), 2
+        ),
     }
 
 

@@ -30,7 +30,9 @@ class Niche:
     depth_m: float
 
 
-def niched_rectangle(lower: tuple[float, float], upper: tuple[float, float], niches: list[Niche]) -> np.ndarray:
+def niched_rectangle(
+    lower: tuple[float, float], upper: tuple[float, float], niches: list[Niche]
+) -> np.ndarray:
     """Counterclockwise polygon vertices (V, 2) of an axis-aligned rectangle with niches."""
     (x0, y0), (x1, y1) = lower, upper
     corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float)
@@ -86,7 +88,10 @@ class FloorPlan:
 
 
 def ring_corridor_building(
-    width_m: float = 20.0, height_m: float = 8.0, corridor_width_m: float = 2.6, niche_depth_m: float | None = None
+    width_m: float = 20.0,
+    height_m: float = 8.0,
+    corridor_width_m: float = 2.6,
+    niche_depth_m: float | None = None,
 ) -> FloorPlan:
     """A ring corridor around a central block; the corridor centre line is the rectangle
     [0, width] x [0, height]. Niche positions are fixed and deliberately irregular so that
@@ -101,15 +106,24 @@ def ring_corridor_building(
     outer_width, outer_height = width_m + corridor_width_m, height_m + corridor_width_m
     inner_width, inner_height = width_m - corridor_width_m, height_m - corridor_width_m
     outer_niches = [
-        Niche(0, 3.2, 1.0, 0.35), Niche(0, 8.1, 1.2, 0.4), Niche(0, 14.6, 0.9, 0.3), Niche(0, 19.4, 1.1, 0.45),
-        Niche(1, 3.0, 1.0, 0.35), Niche(1, 7.4, 0.9, 0.3),
-        Niche(2, 4.1, 1.1, 0.4), Niche(2, 10.2, 0.9, 0.35), Niche(2, 16.8, 1.3, 0.3),
+        Niche(0, 3.2, 1.0, 0.35),
+        Niche(0, 8.1, 1.2, 0.4),
+        Niche(0, 14.6, 0.9, 0.3),
+        Niche(0, 19.4, 1.1, 0.45),
+        Niche(1, 3.0, 1.0, 0.35),
+        Niche(1, 7.4, 0.9, 0.3),
+        Niche(2, 4.1, 1.1, 0.4),
+        Niche(2, 10.2, 0.9, 0.35),
+        Niche(2, 16.8, 1.3, 0.3),
         Niche(3, 5.6, 1.0, 0.4),
     ]
     inner_niches = [
-        Niche(0, 2.7, 0.9, -0.3), Niche(0, 10.9, 1.0, -0.35), Niche(0, 14.8, 0.8, -0.3),
+        Niche(0, 2.7, 0.9, -0.3),
+        Niche(0, 10.9, 1.0, -0.35),
+        Niche(0, 14.8, 0.8, -0.3),
         Niche(1, 2.6, 0.9, -0.3),
-        Niche(2, 4.4, 1.0, -0.35), Niche(2, 12.3, 0.9, -0.3),
+        Niche(2, 4.4, 1.0, -0.35),
+        Niche(2, 12.3, 0.9, -0.3),
         Niche(3, 3.1, 0.8, -0.3),
     ]
     if niche_depth_m is not None:
@@ -117,12 +131,16 @@ def ring_corridor_building(
             raise ValueError(f"niche depth must be in (0, 1.2] m, got {niche_depth_m}")
         outer_niches = [replace(niche, depth_m=niche_depth_m) for niche in outer_niches]
         inner_niches = [replace(niche, depth_m=-niche_depth_m) for niche in inner_niches]
-    outer = niched_rectangle((-half, -half), (-half + outer_width, -half + outer_height), outer_niches)
+    outer = niched_rectangle(
+        (-half, -half), (-half + outer_width, -half + outer_height), outer_niches
+    )
     inner = niched_rectangle((half, half), (half + inner_width, half + inner_height), inner_niches)
     centerline = np.array([[0.0, 0.0], [width_m, 0.0], [width_m, height_m], [0.0, height_m]])
     return FloorPlan(
         walls=np.concatenate([polygon_walls(outer), polygon_walls(inner)]),
         corners=np.concatenate([outer, inner]),
-        corner_directions=np.concatenate([polygon_corner_directions(outer), polygon_corner_directions(inner)]),
+        corner_directions=np.concatenate(
+            [polygon_corner_directions(outer), polygon_corner_directions(inner)]
+        ),
         corridor_centerline=centerline,
     )

@@ -103,7 +103,9 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
         elif isinstance(measurement, LandmarkScan):
             scans.append(measurement)
         else:
-            raise InputError(f"{folder}: the sequence folder format cannot hold {type(measurement).__name__} measurements")
+            raise InputError(
+                f"{folder}: the sequence folder format cannot hold {type(measurement).__name__} measurements"
+            )
     ids_withheld = any(scan.ids is None for scan in scans)
     files: dict[str, str] = {}
 
@@ -111,7 +113,8 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
         table = np.array(imu_rows)
         files["imu.csv"] = _table(
             ["t", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"],
-            list(table.T), [TIME_FORMAT] + [VALUE_FORMAT] * 6,
+            list(table.T),
+            [TIME_FORMAT] + [VALUE_FORMAT] * 6,
         )
     if gyro_rows:
         table = np.array(gyro_rows)
@@ -119,23 +122,34 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
 
     rows, cols = _upper_triangle(d)
     cov_names = [f"c_{axes[i]}{axes[j]}" for i, j in zip(rows, cols)]
-    scan_index = np.concatenate([np.full(scan.count, index) for index, scan in enumerate(scans)] or [np.zeros(0)])
+    scan_index = np.concatenate(
+        [np.full(scan.count, index) for index, scan in enumerate(scans)] or [np.zeros(0)]
+    )
     scan_t = np.concatenate([np.full(scan.count, scan.t) for scan in scans] or [np.zeros(0)])
     points = np.concatenate([scan.points.reshape(-1, d) for scan in scans] or [np.zeros((0, d))])
-    covariances = np.concatenate([scan.covariances.reshape(-1, d, d) for scan in scans] or [np.zeros((0, d, d))])
+    covariances = np.concatenate(
+        [scan.covariances.reshape(-1, d, d) for scan in scans] or [np.zeros((0, d, d))]
+    )
     ids = np.concatenate(
-        [np.full(scan.count, -1) if scan.ids is None else np.asarray(scan.ids) for scan in scans] or [np.zeros(0)]
+        [np.full(scan.count, -1) if scan.ids is None else np.asarray(scan.ids) for scan in scans]
+        or [np.zeros(0)]
     )
     files["scans.csv"] = _table(
         ["scan", "t", "count"],
-        [np.arange(len(scans)), np.array([scan.t for scan in scans]), np.array([scan.count for scan in scans])],
+        [
+            np.arange(len(scans)),
+            np.array([scan.t for scan in scans]),
+            np.array([scan.count for scan in scans]),
+        ],
         ["%d", TIME_FORMAT, "%d"],
     )
     direction_count = _direction_count(scans, folder)
     direction_names = [f"u{m + 1}_{axis}" for m in range(direction_count) for axis in axes]
     directions = np.zeros((len(points), 0))
     if direction_count:
-        directions = np.concatenate([scan.directions.reshape(scan.count, direction_count * d) for scan in scans])
+        directions = np.concatenate(
+            [scan.directions.reshape(scan.count, direction_count * d) for scan in scans]
+        )
     files["landmarks.csv"] = _table(
         ["scan", "t", "id", *axes, *cov_names, *direction_names],
         [scan_index, scan_t, ids, *points.T, *covariances[:, rows, cols].T, *directions.T],
@@ -144,7 +158,9 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
     if sequence.known_landmarks is not None:
         known = sequence.known_landmarks
         files["known_landmarks.csv"] = _table(
-            ["rank", "id", *axes], [np.arange(len(known)), known.ids, *known.positions.T], ["%d", "%d"] + [VALUE_FORMAT] * d
+            ["rank", "id", *axes],
+            [np.arange(len(known)), known.ids, *known.positions.T],
+            ["%d", "%d"] + [VALUE_FORMAT] * d,
         )
 
     truth = sequence.ground_truth
@@ -166,7 +182,9 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
         "files": sorted(files),
     }
     files["sequence.json"] = json.dumps(description, sort_keys=True, indent=2) + "\n"
-    files["README.md"] = FOLDER_README.format(format_name=FORMAT_NAME, format_version=FORMAT_VERSION)
+    files["README.md"] = FOLDER_README.format(
+        format_name=FORMAT_NAME, format_version=FORMAT_VERSION
+    )
     for name, text in files.items():
         write_atomic(folder / name, text)
     return folder
@@ -174,11 +192,19 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
 
 def _direction_count(scans: list[LandmarkScan], folder: Path) -> int:
     """Line directions per landmark (j), the same for every scan, or 0 when none has them."""
-    counts = {0 if scan.directions is None else int(scan.directions.shape[1]) for scan in scans if scan.count}
-    if any(scan.directions is not None for scan in scans) and any(scan.directions is None for scan in scans):
+    counts = {
+        0 if scan.directions is None else int(scan.directions.shape[1])
+        for scan in scans
+        if scan.count
+    }
+    if any(scan.directions is not None for scan in scans) and any(
+        scan.directions is None for scan in scans
+    ):
         raise InputError(f"{folder}: some scans carry line directions and others not")
     if len(counts) > 1:
-        raise InputError(f"{folder}: scans carry different numbers of line directions {sorted(counts)}")
+        raise InputError(
+            f"{folder}: scans carry different numbers of line directions {sorted(counts)}"
+        )
     return counts.pop() if counts else 0
 
 
@@ -202,20 +228,30 @@ def _ground_truth_files(truth: GroundTruth, d: int, scans: list[LandmarkScan]) -
             names = axes if width == d else ["z"] if width == 1 else _axes(width)
             header += [f"{prefix}_{axis}" for axis in names]
             columns += list(block.values.T)
-        files["ground_truth/states.csv"] = _table(header, columns, [TIME_FORMAT] + [VALUE_FORMAT] * (len(header) - 1))
+        files["ground_truth/states.csv"] = _table(
+            header, columns, [TIME_FORMAT] + [VALUE_FORMAT] * (len(header) - 1)
+        )
     if truth.landmarks is not None:
         files["ground_truth/landmarks.csv"] = _table(
-            ["id", *axes], [truth.landmarks.ids, *truth.landmarks.positions.T], ["%d"] + [VALUE_FORMAT] * d
+            ["id", *axes],
+            [truth.landmarks.ids, *truth.landmarks.positions.T],
+            ["%d"] + [VALUE_FORMAT] * d,
         )
     if truth.scan_ids:
-        scan_index = np.concatenate([np.full(len(ids), index) for index, (_, ids) in enumerate(truth.scan_ids)])
+        scan_index = np.concatenate(
+            [np.full(len(ids), index) for index, (_, ids) in enumerate(truth.scan_ids)]
+        )
         scan_t = np.concatenate([np.full(len(ids), t) for t, ids in truth.scan_ids])
         true_ids = np.concatenate([np.asarray(ids) for _, ids in truth.scan_ids])
-        files["ground_truth/scan_ids.csv"] = _table(["scan", "t", "id"], [scan_index, scan_t, true_ids], ["%d", TIME_FORMAT, "%d"])
+        files["ground_truth/scan_ids.csv"] = _table(
+            ["scan", "t", "id"], [scan_index, scan_t, true_ids], ["%d", TIME_FORMAT, "%d"]
+        )
     return files
 
 
-def _read_table(path: Path, expected_header: list[str] | None = None) -> tuple[list[str], np.ndarray]:
+def _read_table(
+    path: Path, expected_header: list[str] | None = None
+) -> tuple[list[str], np.ndarray]:
     """Header and float rows (n, columns) of a CSV file; ``InputError`` naming the file."""
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -264,19 +300,27 @@ def read_sequence_folder(path: str | Path) -> Sequence:
 
     inertial: list[Measurement] = []
     if "imu.csv" in files:
-        _, table = _read_table(folder / "imu.csv", ["t", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"])
-        inertial = [ImuSample(t=float(row[0]), gyro=row[1:4].copy(), accel=row[4:7].copy()) for row in table]
+        _, table = _read_table(
+            folder / "imu.csv", ["t", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"]
+        )
+        inertial = [
+            ImuSample(t=float(row[0]), gyro=row[1:4].copy(), accel=row[4:7].copy()) for row in table
+        ]
     if "gyro.csv" in files:
         _, table = _read_table(folder / "gyro.csv", ["t", "rate_z"])
         inertial = [GyroSample(t=float(row[0]), rate=row[1:2].copy()) for row in table]
     _, scan_table = _read_table(folder / "scans.csv", ["scan", "t", "count"])
     direction_names = [f"u{m + 1}_{axis}" for m in range(direction_count) for axis in axes]
-    _, observations = _read_table(folder / "landmarks.csv", ["scan", "t", "id", *axes, *cov_names, *direction_names])
+    _, observations = _read_table(
+        folder / "landmarks.csv", ["scan", "t", "id", *axes, *cov_names, *direction_names]
+    )
     covariance_columns = slice(3 + d, 3 + d + len(cov_names))
     direction_columns = slice(3 + d + len(cov_names), None)
     counts = scan_table[:, 2].astype(int)
     if counts.sum() != len(observations):
-        raise InputError(f"{folder / 'landmarks.csv'}: {len(observations)} rows, scans.csv counts {counts.sum()}")
+        raise InputError(
+            f"{folder / 'landmarks.csv'}: {len(observations)} rows, scans.csv counts {counts.sum()}"
+        )
     bounds = np.concatenate([[0], np.cumsum(counts)])
     scans = []
     for index, (t, start, stop) in enumerate(zip(scan_table[:, 1], bounds[:-1], bounds[1:])):
@@ -288,16 +332,22 @@ def read_sequence_folder(path: str | Path) -> Sequence:
         covariances[:, cols, rows] = block[:, covariance_columns]
         scans.append(
             LandmarkScan(
-                t=float(t), points=block[:, 3:3 + d].copy(), covariances=covariances,
+                t=float(t),
+                points=block[:, 3 : 3 + d].copy(),
+                covariances=covariances,
                 ids=None if ids_withheld else block[:, 2].astype(int),
-                directions=block[:, direction_columns].reshape(-1, direction_count, d).copy() if direction_count else None,
+                directions=block[:, direction_columns].reshape(-1, direction_count, d).copy()
+                if direction_count
+                else None,
             )
         )
 
     known = None
     if "known_landmarks.csv" in files:
         _, table = _read_table(folder / "known_landmarks.csv", ["rank", "id", *axes])
-        known = LandmarkMap(ids=table[:, 1].astype(int), positions=table[:, 2:].reshape(-1, d), frame=Frame.WORLD)
+        known = LandmarkMap(
+            ids=table[:, 1].astype(int), positions=table[:, 2:].reshape(-1, d), frame=Frame.WORLD
+        )
 
     truth = _read_ground_truth(folder, files, d, scan_table)
     noise_fields = description.get("noise") or {}
@@ -308,7 +358,9 @@ def read_sequence_folder(path: str | Path) -> Sequence:
             t=float(initial["t"]),
             position=np.array(initial["position"], dtype=float),
             rotation=np.array(initial["rotation"], dtype=float),
-            velocity=None if initial["velocity"] is None else np.array(initial["velocity"], dtype=float),
+            velocity=None
+            if initial["velocity"] is None
+            else np.array(initial["velocity"], dtype=float),
             position_sigma_m=float(initial["position_sigma_m"]),
             rotation_sigma_rad=float(initial["rotation_sigma_rad"]),
             velocity_sigma_m_s=float(initial["velocity_sigma_m_s"]),
@@ -335,7 +387,9 @@ def read_sequence_folder(path: str | Path) -> Sequence:
     )
 
 
-def _read_ground_truth(folder: Path, files: set[str], d: int, scan_table: np.ndarray) -> GroundTruth | None:
+def _read_ground_truth(
+    folder: Path, files: set[str], d: int, scan_table: np.ndarray
+) -> GroundTruth | None:
     if "ground_truth/pose.tum" not in files:
         return None
     spatial = read_tum(folder / "ground_truth/pose.tum")
@@ -343,17 +397,25 @@ def _read_ground_truth(folder: Path, files: set[str], d: int, scan_table: np.nda
         pose = spatial
     else:
         quats = spatial.rotations
-        pose = Trajectory(t=spatial.t, positions=spatial.positions[:, :2], rotations=2 * np.arctan2(quats[:, 3], quats[:, 0]))
+        pose = Trajectory(
+            t=spatial.t,
+            positions=spatial.positions[:, :2],
+            rotations=2 * np.arctan2(quats[:, 3], quats[:, 0]),
+        )
     blocks: dict[BlockName, StateBlock] = {}
     body_velocity = None
     if "ground_truth/states.csv" in files:
         header, table = _read_table(folder / "ground_truth/states.csv")
+
         def columns(prefix: str) -> np.ndarray | None:
             picked = [index for index, name in enumerate(header) if name.startswith(prefix + "_")]
             return table[:, picked] if picked else None
+
         t = table[:, 0]
         for prefix, block_name, frame in (
-            ("vw", BlockName.VELOCITY, Frame.WORLD), ("bg", BlockName.GYRO_BIAS, Frame.BODY), ("ba", BlockName.ACCEL_BIAS, Frame.BODY),
+            ("vw", BlockName.VELOCITY, Frame.WORLD),
+            ("bg", BlockName.GYRO_BIAS, Frame.BODY),
+            ("ba", BlockName.ACCEL_BIAS, Frame.BODY),
         ):
             values = columns(prefix)
             if values is not None:
@@ -363,7 +425,9 @@ def _read_ground_truth(folder: Path, files: set[str], d: int, scan_table: np.nda
     landmarks = None
     if "ground_truth/landmarks.csv" in files:
         _, table = _read_table(folder / "ground_truth/landmarks.csv")
-        landmarks = LandmarkMap(ids=table[:, 0].astype(int), positions=table[:, 1:].reshape(-1, d), frame=Frame.WORLD)
+        landmarks = LandmarkMap(
+            ids=table[:, 0].astype(int), positions=table[:, 1:].reshape(-1, d), frame=Frame.WORLD
+        )
     scan_ids: tuple[tuple[float, np.ndarray], ...] = ()
     if "ground_truth/scan_ids.csv" in files:
         _, table = _read_table(folder / "ground_truth/scan_ids.csv", ["scan", "t", "id"])
@@ -371,10 +435,17 @@ def _read_ground_truth(folder: Path, files: set[str], d: int, scan_table: np.nda
         if np.any(np.diff(scan_column) < 0):
             raise InputError(f"{folder / 'ground_truth/scan_ids.csv'}: rows not grouped by scan")
         indices = np.arange(len(scan_table))
-        starts, stops = np.searchsorted(scan_column, indices, "left"), np.searchsorted(scan_column, indices, "right")
+        starts, stops = (
+            np.searchsorted(scan_column, indices, "left"),
+            np.searchsorted(scan_column, indices, "right"),
+        )
         scan_ids = tuple(
-            (float(t), table[start:stop, 2].astype(int)) for t, start, stop in zip(scan_table[:, 1], starts, stops)
+            (float(t), table[start:stop, 2].astype(int))
+            for t, start, stop in zip(scan_table[:, 1], starts, stops)
         )
     return GroundTruth(
-        history=StateHistory(pose=pose, blocks=blocks), landmarks=landmarks, body_velocity=body_velocity, scan_ids=scan_ids,
+        history=StateHistory(pose=pose, blocks=blocks),
+        landmarks=landmarks,
+        body_velocity=body_velocity,
+        scan_ids=scan_ids,
     )

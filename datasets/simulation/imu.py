@@ -54,7 +54,7 @@ class InertialNoise:
     gyro_bias_sigma_rad_s: float
     accel_bias_sigma_m_s2: float
 
-    def scaled(self, factor: float) -> "InertialNoise":
+    def scaled(self, factor: float) -> InertialNoise:
         """Every std multiplied by ``factor``."""
         return InertialNoise(*(factor * value for value in self.__dict__.values()))
 
@@ -85,7 +85,12 @@ def kitti_imu_sigmas(path: Path | None = None) -> dict[str, float]:
     try:
         return {
             name: float(values[name])
-            for name in ("AccelerometerSigma", "GyroscopeSigma", "AccelerometerBiasSigma", "GyroscopeBiasSigma")
+            for name in (
+                "AccelerometerSigma",
+                "GyroscopeSigma",
+                "AccelerometerBiasSigma",
+                "GyroscopeBiasSigma",
+            )
         }
     except (KeyError, ValueError) as error:
         raise InputError(f"{path}: missing or malformed field {error}") from None
@@ -109,7 +114,12 @@ class ImuSeries:
 
 
 def bias_random_walk(
-    count: int, dimension: int, dt: float, initial_sigma: float, walk: float, rng: np.random.Generator
+    count: int,
+    dimension: int,
+    dt: float,
+    initial_sigma: float,
+    walk: float,
+    rng: np.random.Generator,
 ) -> np.ndarray:
     """Bias path, shape (count, dimension): b_0 ~ N(0, initial_sigma^2), then increments
     of std ``walk * sqrt(dt)`` per sample (continuous-time random walk density ``walk``)."""
@@ -123,11 +133,17 @@ def specific_force(kinematics: Kinematics) -> np.ndarray:
     return np.einsum("nji,nj->ni", kinematics.rotation, kinematics.acceleration - GRAVITY_M_S2)
 
 
-def simulate_imu(kinematics: Kinematics, rate_hz: float, noise: InertialNoise, rng: np.random.Generator) -> ImuSeries:
+def simulate_imu(
+    kinematics: Kinematics, rate_hz: float, noise: InertialNoise, rng: np.random.Generator
+) -> ImuSeries:
     """3-D IMU samples at the kinematics' times (spaced 1/rate_hz), with biases and noise."""
     count, dt = len(kinematics.t), 1.0 / rate_hz
-    gyro_bias = bias_random_walk(count, 3, dt, noise.gyro_bias_sigma_rad_s, noise.gyro_bias_walk, rng)
-    accel_bias = bias_random_walk(count, 3, dt, noise.accel_bias_sigma_m_s2, noise.accel_bias_walk, rng)
+    gyro_bias = bias_random_walk(
+        count, 3, dt, noise.gyro_bias_sigma_rad_s, noise.gyro_bias_walk, rng
+    )
+    accel_bias = bias_random_walk(
+        count, 3, dt, noise.accel_bias_sigma_m_s2, noise.accel_bias_walk, rng
+    )
     gyro_white = noise.gyro_noise_density * np.sqrt(rate_hz) * rng.standard_normal((count, 3))
     accel_white = noise.accel_noise_density * np.sqrt(rate_hz) * rng.standard_normal((count, 3))
     return ImuSeries(
@@ -143,7 +159,13 @@ def simulate_planar_gyro(
 ) -> ImuSeries:
     """Planar rate-gyro samples (yaw rate, shape (N, 1)) with bias walk and white noise."""
     count, dt = len(kinematics.t), 1.0 / rate_hz
-    gyro_bias = bias_random_walk(count, 1, dt, noise.gyro_bias_sigma_rad_s, noise.gyro_bias_walk, rng)
+    gyro_bias = bias_random_walk(
+        count, 1, dt, noise.gyro_bias_sigma_rad_s, noise.gyro_bias_walk, rng
+    )
     gyro_white = noise.gyro_noise_density * np.sqrt(rate_hz) * rng.standard_normal((count, 1))
-    return ImuSeries(gyro=kinematics.body_rate + gyro_bias + gyro_white, accel=None, gyro_bias=gyro_bias, accel_bias=None)
-
+    return ImuSeries(
+        gyro=kinematics.body_rate + gyro_bias + gyro_white,
+        accel=None,
+        gyro_bias=gyro_bias,
+        accel_bias=None,
+    )

@@ -95,7 +95,11 @@ def line_of_sight_mask(sensor: np.ndarray, targets: np.ndarray, walls: np.ndarra
 
 
 def isotropic_observations(
-    body_points: np.ndarray, sigmas_m: np.ndarray, noise_scale: float, stated_scale: float, rng: np.random.Generator
+    body_points: np.ndarray,
+    sigmas_m: np.ndarray,
+    noise_scale: float,
+    stated_scale: float,
+    rng: np.random.Generator,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Noisy positions ``p + noise_scale sigma_i n`` (n ~ N(0, I)) and stated covariances
     ``(stated_scale sigma_i)^2 I``. body_points (k, d), sigmas_m (k,) -> ((k, d), (k, d, d))."""
@@ -123,11 +127,16 @@ class RangeBearingNoise:
 
     def range_sigma(self, ranges_m: np.ndarray) -> np.ndarray:
         """sigma_rho for each range (k,) [m]."""
-        return np.where(ranges_m <= self.switch_range_m, self.near_range_sigma_m, self.far_range_sigma_m)
+        return np.where(
+            ranges_m <= self.switch_range_m, self.near_range_sigma_m, self.far_range_sigma_m
+        )
 
 
 def range_bearing_covariance(
-    ranges_m: np.ndarray, bearings_rad: np.ndarray, range_sigma_m: np.ndarray, bearing_sigma_rad: float
+    ranges_m: np.ndarray,
+    bearings_rad: np.ndarray,
+    range_sigma_m: np.ndarray,
+    bearing_sigma_rad: float,
 ) -> np.ndarray:
     """First-order covariance of ``p = rho (cos a, sin a)``: ``J diag(s_rho^2, s_a^2) J^T``.
 
@@ -141,7 +150,8 @@ def range_bearing_covariance(
     """
     cos, sin = np.cos(bearings_rad), np.sin(bearings_rad)
     jacobian = np.stack(
-        [np.stack([cos, -ranges_m * sin], axis=-1), np.stack([sin, ranges_m * cos], axis=-1)], axis=-2
+        [np.stack([cos, -ranges_m * sin], axis=-1), np.stack([sin, ranges_m * cos], axis=-1)],
+        axis=-2,
     )  # (k, 2, 2): columns d/drho, d/dalpha
     variances = np.stack([range_sigma_m**2, np.full_like(ranges_m, bearing_sigma_rad**2)], axis=-1)
     covariances = np.einsum("kij,kj,klj->kil", jacobian, variances, jacobian)
@@ -162,10 +172,16 @@ def range_bearing_observations(
     bearings = np.arctan2(body_points[:, 1], body_points[:, 0])
     range_sigma = noise.range_sigma(ranges)
     measured_ranges = ranges + noise_scale * range_sigma * rng.standard_normal(len(ranges))
-    measured_bearings = bearings + noise_scale * noise.bearing_sigma_rad * rng.standard_normal(len(ranges))
-    points = measured_ranges[:, None] * np.column_stack([np.cos(measured_bearings), np.sin(measured_bearings)])
+    measured_bearings = bearings + noise_scale * noise.bearing_sigma_rad * rng.standard_normal(
+        len(ranges)
+    )
+    points = measured_ranges[:, None] * np.column_stack(
+        [np.cos(measured_bearings), np.sin(measured_bearings)]
+    )
     covariances = range_bearing_covariance(
-        measured_ranges, measured_bearings, stated_scale * noise.range_sigma(measured_ranges),
+        measured_ranges,
+        measured_bearings,
+        stated_scale * noise.range_sigma(measured_ranges),
         stated_scale * noise.bearing_sigma_rad,
     )
     return points, covariances
@@ -182,7 +198,9 @@ def planar_direction_observations(
     return np.stack([cos * x - sin * y, sin * x + cos * y], axis=-1)
 
 
-def anchor_order(positions: np.ndarray, visible_first: np.ndarray, origin: np.ndarray) -> np.ndarray:
+def anchor_order(
+    positions: np.ndarray, visible_first: np.ndarray, origin: np.ndarray
+) -> np.ndarray:
     """Indices of landmarks ordered for use as anchors.
 
     The landmarks visible at the start (``visible_first``, bool (L,)) come first: the pair
@@ -195,7 +213,9 @@ def anchor_order(positions: np.ndarray, visible_first: np.ndarray, origin: np.nd
     hidden = np.flatnonzero(~visible_first)
 
     def by_distance(indices: np.ndarray) -> np.ndarray:
-        return indices[np.argsort(np.linalg.norm(positions[indices] - origin, axis=1), kind="stable")]
+        return indices[
+            np.argsort(np.linalg.norm(positions[indices] - origin, axis=1), kind="stable")
+        ]
 
     head: list[int] = []
     if len(visible) >= 2:
@@ -211,5 +231,9 @@ def anchor_order(positions: np.ndarray, visible_first: np.ndarray, origin: np.nd
             else:
                 areas = np.abs(edge[0] * offsets[:, 1] - edge[1] * offsets[:, 0])
             head.append(int(visible[np.argmax(areas)]))
-    rest_visible = by_distance(np.array([index for index in visible if index not in head], dtype=int))
-    return np.concatenate([np.array(head, dtype=int), rest_visible, by_distance(hidden)]).astype(int)
+    rest_visible = by_distance(
+        np.array([index for index in visible if index not in head], dtype=int)
+    )
+    return np.concatenate([np.array(head, dtype=int), rest_visible, by_distance(hidden)]).astype(
+        int
+    )

@@ -29,54 +29,98 @@ from datasets.sequence import NoiseSpec, Sequence
 from datasets.simulation.assembly import SimulatedData, build_sequence, sample_times
 from datasets.simulation.floor_plan import ring_corridor_building
 from datasets.simulation.imu import (
-    KITTI_IMU_METADATA, InertialNoise, kitti_imu_sigmas, simulate_imu, simulate_planar_gyro,
+    KITTI_IMU_METADATA,
+    InertialNoise,
+    kitti_imu_sigmas,
+    simulate_imu,
+    simulate_planar_gyro,
 )
 from datasets.simulation.landmarks import (
-    RangeBearingNoise, ScanSeries, anchor_order, field_of_view_mask, isotropic_observations, line_of_sight_mask,
-    planar_direction_observations, range_bearing_observations, to_body_frame,
+    RangeBearingNoise,
+    ScanSeries,
+    anchor_order,
+    field_of_view_mask,
+    isotropic_observations,
+    line_of_sight_mask,
+    planar_direction_observations,
+    range_bearing_observations,
+    to_body_frame,
 )
 from datasets.simulation.trajectories import (
-    CircleMotion, PlanarPathMotion, RandomSpeed, RoundedPolylinePath, SinusoidalSpeed, StaticMotion, Terrain, TerrainViaPointLoop,
+    CircleMotion,
+    PlanarPathMotion,
+    RandomSpeed,
+    RoundedPolylinePath,
+    SinusoidalSpeed,
+    StaticMotion,
+    Terrain,
+    TerrainViaPointLoop,
 )
 
 
 class _CommonOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    duration_s: float | None = Field(None, gt=0, description="length of the sequence [s]; default: the scenario's own")
-    noise_scale: float = Field(1.0, ge=0, description="multiplies every noise std (0: noise-free data)")
+    duration_s: float | None = Field(
+        None, gt=0, description="length of the sequence [s]; default: the scenario's own"
+    )
+    noise_scale: float = Field(
+        1.0, ge=0, description="multiplies every noise std (0: noise-free data)"
+    )
     ids: bool = Field(True, description="scans carry the true landmark ids (false: ids withheld)")
     landmark_rate_hz: float = Field(10.0, gt=0, le=1000, description="landmark scan rate [Hz]")
     range_m: float = Field(20.0, gt=0, description="maximum landmark range [m]")
-    fov_deg: float = Field(360.0, gt=0, le=360, description="horizontal field of view centred on body x [deg]")
+    fov_deg: float = Field(
+        360.0, gt=0, le=360, description="horizontal field of view centred on body x [deg]"
+    )
 
 
 class _SpatialOptions(_CommonOptions):
-    layout_seed: int = Field(0, ge=0, description="seed of the world layout (landmarks, sigmas); noise uses --seed")
+    layout_seed: int = Field(
+        0, ge=0, description="seed of the world layout (landmarks, sigmas); noise uses --seed"
+    )
     imu_rate_hz: float = Field(100.0, gt=0, le=10000, description="IMU rate [Hz]")
     vertical_fov_deg: float = Field(60.0, gt=0, le=180, description="vertical field of view [deg]")
-    gyro_bias_sigma_rad_s: float = Field(1e-3, ge=0, description="std of the initial gyro bias [rad/s]")
-    accel_bias_sigma_m_s2: float = Field(0.05, ge=0, description="std of the initial accelerometer bias [m/s^2]")
+    gyro_bias_sigma_rad_s: float = Field(
+        1e-3, ge=0, description="std of the initial gyro bias [rad/s]"
+    )
+    accel_bias_sigma_m_s2: float = Field(
+        0.05, ge=0, description="std of the initial accelerometer bias [m/s^2]"
+    )
     gyro_noise_density: float | None = Field(
-        None, ge=0, description="gyro white noise [rad/s/sqrt(Hz)]; default: KITTI GyroscopeSigma (gtsam Data)"
+        None,
+        ge=0,
+        description="gyro white noise [rad/s/sqrt(Hz)]; default: KITTI GyroscopeSigma (gtsam Data)",
     )
     accel_noise_density: float | None = Field(
-        None, ge=0, description="accelerometer white noise [m/s^2/sqrt(Hz)]; default: KITTI AccelerometerSigma"
+        None,
+        ge=0,
+        description="accelerometer white noise [m/s^2/sqrt(Hz)]; default: KITTI AccelerometerSigma",
     )
     gyro_bias_walk: float | None = Field(
-        None, ge=0, description="gyro bias random walk [rad/s^2/sqrt(Hz)]; default: KITTI GyroscopeBiasSigma"
+        None,
+        ge=0,
+        description="gyro bias random walk [rad/s^2/sqrt(Hz)]; default: KITTI GyroscopeBiasSigma",
     )
     accel_bias_walk: float | None = Field(
-        None, ge=0, description="accelerometer bias random walk [m/s^3/sqrt(Hz)]; default: KITTI AccelerometerBiasSigma"
+        None,
+        ge=0,
+        description="accelerometer bias random walk [m/s^3/sqrt(Hz)]; default: KITTI AccelerometerBiasSigma",
     )
 
 
 class AghiliRoverOptions(_SpatialOptions):
     imu_rate_hz: float = Field(20.0, gt=0, le=10000, description="IMU rate [Hz] (paper: 20 Hz)")
     speed_m_s: float = Field(1.0, gt=0, le=5, description="cruise speed along the via points [m/s]")
-    landmark_count: int = Field(60, ge=3, le=10000, description="landmarks scattered over the terrain")
-    landmark_sigma_min_m: float = Field(0.1, ge=0, description="smallest per-landmark noise sigma [m]")
-    landmark_sigma_max_m: float = Field(0.25, ge=0, description="largest per-landmark noise sigma [m]")
+    landmark_count: int = Field(
+        60, ge=3, le=10000, description="landmarks scattered over the terrain"
+    )
+    landmark_sigma_min_m: float = Field(
+        0.1, ge=0, description="smallest per-landmark noise sigma [m]"
+    )
+    landmark_sigma_max_m: float = Field(
+        0.25, ge=0, description="largest per-landmark noise sigma [m]"
+    )
 
 
 class CircleOptions(_SpatialOptions):
@@ -95,8 +139,12 @@ class StaticOptions(_SpatialOptions):
 
 class GuerreiroLoopOptions(_CommonOptions):
     range_m: float = Field(30.0, gt=0, description="laser range [m] (Hokuyo UTM-30LX: 30 m)")
-    fov_deg: float = Field(270.0, gt=0, le=360, description="laser field of view [deg] (UTM-30LX: 270)")
-    gyro_rate_hz: float = Field(10.0, gt=0, le=10000, description="rate gyro rate [Hz] (paper: synchronised with the laser)")
+    fov_deg: float = Field(
+        270.0, gt=0, le=360, description="laser field of view [deg] (UTM-30LX: 270)"
+    )
+    gyro_rate_hz: float = Field(
+        10.0, gt=0, le=10000, description="rate gyro rate [Hz] (paper: synchronised with the laser)"
+    )
     mean_speed_m_s: float = Field(0.4, gt=0, le=3, description="average speed [m/s] (paper: 0.4)")
     speed_profile: Literal["sinusoidal", "random"] = Field(
         "sinusoidal",
@@ -104,21 +152,34 @@ class GuerreiroLoopOptions(_CommonOptions):
         "mean-reverting random walk of density speed_walk_m_s_sqrt_s (the paper's velocity model (2))",
     )
     speed_walk_m_s_sqrt_s: float = Field(
-        0.02, ge=0, le=0.1, description="density of the random speed profile [m/s/sqrt(s)] (speed_profile=random)"
+        0.02,
+        ge=0,
+        le=0.1,
+        description="density of the random speed profile [m/s/sqrt(s)] (speed_profile=random)",
     )
     gyro_noise_density: float = Field(
-        float(np.deg2rad(0.1)), ge=0, description="gyro white noise [rad/s/sqrt(Hz)] (MEMS grade, 0.1 deg/s/sqrt(Hz))"
+        float(np.deg2rad(0.1)),
+        ge=0,
+        description="gyro white noise [rad/s/sqrt(Hz)] (MEMS grade, 0.1 deg/s/sqrt(Hz))",
     )
     gyro_bias_walk: float = Field(
-        float(np.deg2rad(5.7e-5)), ge=0, description="gyro bias random walk [rad/s^2/sqrt(Hz)] (paper: 5.7e-5 deg/s)"
+        float(np.deg2rad(5.7e-5)),
+        ge=0,
+        description="gyro bias random walk [rad/s^2/sqrt(Hz)] (paper: 5.7e-5 deg/s)",
     )
-    gyro_bias_sigma_rad_s: float = Field(5e-3, ge=0, description="std of the initial gyro bias [rad/s]")
+    gyro_bias_sigma_rad_s: float = Field(
+        5e-3, ge=0, description="std of the initial gyro bias [rad/s]"
+    )
     niche_depth_m: float | None = Field(
-        None, gt=0, le=1.2,
+        None,
+        gt=0,
+        le=1.2,
         description="depth of every door niche [m] (default: 0.3-0.45 m, corners individually ambiguous at the "
         "paper's laser noise; 1.0: corners >= 0.8 m apart)",
     )
-    directions: bool = Field(False, description="scans carry each corner's two wall directions (body frame)")
+    directions: bool = Field(
+        False, description="scans carry each corner's two wall directions (body frame)"
+    )
     direction_sigma_deg: float = Field(
         2.0, ge=0, description="std of the wall direction angle noise [deg] (the paper states none)"
     )
@@ -138,7 +199,13 @@ def _generators(seed: int) -> dict[str, np.random.Generator]:
 
 
 def _metadata(scenario: str, seed: int, options: BaseModel, **extra: object) -> dict[str, object]:
-    return {"source": "simulator", "scenario": scenario, "seed": seed, "options": options.model_dump(mode="json"), **extra}
+    return {
+        "source": "simulator",
+        "scenario": scenario,
+        "seed": seed,
+        "options": options.model_dump(mode="json"),
+        **extra,
+    }
 
 
 def _kitti_inertial_noise(options: _SpatialOptions) -> InertialNoise:
@@ -159,7 +226,9 @@ def _kitti_inertial_noise(options: _SpatialOptions) -> InertialNoise:
     )
 
 
-def _noise_spec(noise: InertialNoise, landmark_sigma_m: float, rates: dict[str, float], planar: bool) -> NoiseSpec:
+def _noise_spec(
+    noise: InertialNoise, landmark_sigma_m: float, rates: dict[str, float], planar: bool
+) -> NoiseSpec:
     return NoiseSpec(
         gyro_noise_density=noise.gyro_noise_density,
         accel_noise_density=None if planar else noise.accel_noise_density,
@@ -173,7 +242,11 @@ def _noise_spec(noise: InertialNoise, landmark_sigma_m: float, rates: dict[str, 
 
 
 def _spatial_scans(
-    motion, times: np.ndarray, landmarks: np.ndarray, sigmas: np.ndarray, options: _SpatialOptions,
+    motion,
+    times: np.ndarray,
+    landmarks: np.ndarray,
+    sigmas: np.ndarray,
+    options: _SpatialOptions,
     rng: np.random.Generator,
 ) -> ScanSeries:
     """3-D scans: body-frame positions with isotropic per-landmark noise."""
@@ -182,8 +255,12 @@ def _spatial_scans(
     points, covariances, ids = [], [], []
     for index in range(len(times)):
         body = to_body_frame(kinematics.rotation[index], kinematics.position[index], landmarks)
-        visible = np.flatnonzero(field_of_view_mask(body, options.range_m, options.fov_deg, options.vertical_fov_deg))
-        measured, covariance = isotropic_observations(body[visible], sigmas[visible], drawn, stated, rng)
+        visible = np.flatnonzero(
+            field_of_view_mask(body, options.range_m, options.fov_deg, options.vertical_fov_deg)
+        )
+        measured, covariance = isotropic_observations(
+            body[visible], sigmas[visible], drawn, stated, rng
+        )
         points.append(measured)
         covariances.append(covariance)
         ids.append(visible.astype(int))
@@ -191,20 +268,30 @@ def _spatial_scans(
 
 
 def _simulate_spatial(
-    scenario: str, motion, duration_s: float, landmarks: np.ndarray, sigmas: np.ndarray,
-    options: _SpatialOptions, seed: int, **extra_metadata: object,
+    scenario: str,
+    motion,
+    duration_s: float,
+    landmarks: np.ndarray,
+    sigmas: np.ndarray,
+    options: _SpatialOptions,
+    seed: int,
+    **extra_metadata: object,
 ) -> Sequence:
     generators = _generators(seed)
     drawn, stated = _noise_factors(options.noise_scale)
     nominal = _kitti_inertial_noise(options)
     inertial_times = sample_times(duration_s, options.imu_rate_hz)
     kinematics = motion.kinematics(inertial_times)
-    inertial = simulate_imu(kinematics, options.imu_rate_hz, nominal.scaled(drawn), generators["inertial"])
+    inertial = simulate_imu(
+        kinematics, options.imu_rate_hz, nominal.scaled(drawn), generators["inertial"]
+    )
     scan_times = sample_times(duration_s, options.landmark_rate_hz)
     scans = _spatial_scans(motion, scan_times, landmarks, sigmas, options, generators["landmarks"])
     start = motion.kinematics(np.zeros(1))
     start_body = to_body_frame(start.rotation[0], start.position[0], landmarks)
-    visible_at_start = field_of_view_mask(start_body, options.range_m, options.fov_deg, options.vertical_fov_deg)
+    visible_at_start = field_of_view_mask(
+        start_body, options.range_m, options.fov_deg, options.vertical_fov_deg
+    )
     data = SimulatedData(
         kinematics=kinematics,
         inertial=inertial,
@@ -214,13 +301,25 @@ def _simulate_spatial(
         anchor_order=anchor_order(landmarks, visible_at_start, start.position[0]),
     )
     rates = {"imu": options.imu_rate_hz, "landmarks": options.landmark_rate_hz}
-    noise = _noise_spec(nominal.scaled(stated), float(np.mean(sigmas)) * stated, rates, planar=False)
-    metadata = _metadata(scenario, seed, options, imu_noise_source=f"gtsam Data/{KITTI_IMU_METADATA}", **extra_metadata)
-    return build_sequence(f"sim:{scenario}", data, noise, options.ids, metadata, generators["initial"], drawn, stated)
+    noise = _noise_spec(
+        nominal.scaled(stated), float(np.mean(sigmas)) * stated, rates, planar=False
+    )
+    metadata = _metadata(
+        scenario,
+        seed,
+        options,
+        imu_noise_source=f"gtsam Data/{KITTI_IMU_METADATA}",
+        **extra_metadata,
+    )
+    return build_sequence(
+        f"sim:{scenario}", data, noise, options.ids, metadata, generators["initial"], drawn, stated
+    )
 
 
 # The Aghili case study world: a 30 x 60 m terrain (x across, y along) and seven via points.
-ROVER_VIA_POINTS_XY = np.array([[4.0, 4.0], [25.0, 6.0], [26.0, 24.0], [14.0, 32.0], [25.0, 51.0], [10.0, 56.0], [4.0, 31.0]])
+ROVER_VIA_POINTS_XY = np.array(
+    [[4.0, 4.0], [25.0, 6.0], [26.0, 24.0], [14.0, 32.0], [25.0, 51.0], [10.0, 56.0], [4.0, 31.0]]
+)
 ROVER_TERRAIN = Terrain(
     amplitudes_m=np.array([1.5, 0.7, 0.3]),
     wave_vectors=2 * np.pi * np.array([[1 / 60, 1 / 90], [-1 / 40, 1 / 45], [1 / 25, 1 / 20]]),
@@ -245,11 +344,20 @@ def aghili_rover(seed: int, options: AghiliRoverOptions) -> Sequence:
     width, length = TERRAIN_SIZE_M
     xy = layout.uniform([0.0, 0.0], [width, length], size=(options.landmark_count, 2))
     heights = ROVER_TERRAIN.height(xy) + layout.uniform(0.1, 3.0, size=options.landmark_count)
-    sigmas = layout.uniform(options.landmark_sigma_min_m, options.landmark_sigma_max_m, size=options.landmark_count)
+    sigmas = layout.uniform(
+        options.landmark_sigma_min_m, options.landmark_sigma_max_m, size=options.landmark_count
+    )
     duration = options.duration_s if options.duration_s is not None else motion.period_s
     return _simulate_spatial(
-        "aghili-rover", motion, duration, np.column_stack([xy, heights]), sigmas, options, seed,
-        landmark_sigmas_m=[float(value) for value in sigmas], lap_duration_s=float(motion.period_s),
+        "aghili-rover",
+        motion,
+        duration,
+        np.column_stack([xy, heights]),
+        sigmas,
+        options,
+        seed,
+        landmark_sigmas_m=[float(value) for value in sigmas],
+        lap_duration_s=float(motion.period_s),
     )
 
 
@@ -260,9 +368,17 @@ def circle(seed: int, options: CircleOptions) -> Sequence:
     layout = np.random.default_rng([options.layout_seed, 2])
     angles = layout.uniform(0, 2 * np.pi, options.landmark_count)
     radii = options.radius_m * layout.uniform(0.4, 1.8, options.landmark_count)
-    landmarks = np.column_stack([radii * np.cos(angles), radii * np.sin(angles), layout.uniform(-1, 3, options.landmark_count)])
+    landmarks = np.column_stack(
+        [
+            radii * np.cos(angles),
+            radii * np.sin(angles),
+            layout.uniform(-1, 3, options.landmark_count),
+        ]
+    )
     sigmas = np.full(options.landmark_count, options.landmark_sigma_m)
-    return _simulate_spatial("circle", motion, float(options.duration_s), landmarks, sigmas, options, seed)
+    return _simulate_spatial(
+        "circle", motion, float(options.duration_s), landmarks, sigmas, options, seed
+    )
 
 
 def static(seed: int, options: StaticOptions) -> Sequence:
@@ -272,9 +388,17 @@ def static(seed: int, options: StaticOptions) -> Sequence:
     layout = np.random.default_rng([options.layout_seed, 3])
     angles = layout.uniform(0, 2 * np.pi, options.landmark_count)
     radii = layout.uniform(3.0, 15.0, options.landmark_count)
-    landmarks = np.column_stack([radii * np.cos(angles), radii * np.sin(angles), layout.uniform(-1, 3, options.landmark_count)])
+    landmarks = np.column_stack(
+        [
+            radii * np.cos(angles),
+            radii * np.sin(angles),
+            layout.uniform(-1, 3, options.landmark_count),
+        ]
+    )
     sigmas = np.full(options.landmark_count, options.landmark_sigma_m)
-    return _simulate_spatial("static", motion, float(options.duration_s), landmarks, sigmas, options, seed)
+    return _simulate_spatial(
+        "static", motion, float(options.duration_s), landmarks, sigmas, options, seed
+    )
 
 
 LOOP_PATH_LENGTH_M = 60.0
@@ -282,7 +406,9 @@ LOOP_TURN_LENGTH_M = 3.0
 
 
 def guerreiro_loop_motion(
-    mean_speed_m_s: float, speed_walk_m_s_sqrt_s: float | None = None, rng: np.random.Generator | None = None
+    mean_speed_m_s: float,
+    speed_walk_m_s_sqrt_s: float | None = None,
+    rng: np.random.Generator | None = None,
 ) -> PlanarPathMotion:
     """The loop of Guerreiro et al. (2013) section V: start in the middle of the bottom
     corridor heading east, go counterclockwise round the ring corridor and on past the start
@@ -327,17 +453,24 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     full = motion.duration_s
     duration = options.duration_s if options.duration_s is not None else full
     if duration > full + 1e-9:
-        raise InputError(f"sim:guerreiro-loop: duration_s={duration} exceeds the path's {full:.1f} s")
+        raise InputError(
+            f"sim:guerreiro-loop: duration_s={duration} exceeds the path's {full:.1f} s"
+        )
     plan = ring_corridor_building(niche_depth_m=options.niche_depth_m)
     drawn, stated = _noise_factors(options.noise_scale)
     nominal = InertialNoise(
-        gyro_noise_density=options.gyro_noise_density, accel_noise_density=0.0,
-        gyro_bias_walk=options.gyro_bias_walk, accel_bias_walk=0.0,
-        gyro_bias_sigma_rad_s=options.gyro_bias_sigma_rad_s, accel_bias_sigma_m_s2=0.0,
+        gyro_noise_density=options.gyro_noise_density,
+        accel_noise_density=0.0,
+        gyro_bias_walk=options.gyro_bias_walk,
+        accel_bias_walk=0.0,
+        gyro_bias_sigma_rad_s=options.gyro_bias_sigma_rad_s,
+        accel_bias_sigma_m_s2=0.0,
     )
     gyro_times = sample_times(duration, options.gyro_rate_hz)
     kinematics = motion.kinematics(gyro_times)
-    inertial = simulate_planar_gyro(kinematics, options.gyro_rate_hz, nominal.scaled(drawn), generators["inertial"])
+    inertial = simulate_planar_gyro(
+        kinematics, options.gyro_rate_hz, nominal.scaled(drawn), generators["inertial"]
+    )
 
     laser = RangeBearingNoise()
     scan_times = sample_times(duration, options.landmark_rate_hz)
@@ -361,10 +494,15 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
         if options.directions:
             body_directions = plan.corner_directions[visible] @ rotation  # R^T u for each direction
             directions.append(
-                planar_direction_observations(body_directions, np.deg2rad(options.direction_sigma_deg), drawn, direction_rng)
+                planar_direction_observations(
+                    body_directions, np.deg2rad(options.direction_sigma_deg), drawn, direction_rng
+                )
             )
     scans = ScanSeries(
-        t=scan_times, points=tuple(points), covariances=tuple(covariances), ids=tuple(ids),
+        t=scan_times,
+        points=tuple(points),
+        covariances=tuple(covariances),
+        ids=tuple(ids),
         directions=tuple(directions) if options.directions else None,
     )
     data = SimulatedData(
@@ -376,19 +514,45 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
         anchor_order=anchor_order(plan.corners, visible_at_start, scan_kinematics.position[0]),
     )
     rates = {"gyro": options.gyro_rate_hz, "landmarks": options.landmark_rate_hz}
-    noise = _noise_spec(nominal.scaled(stated), laser.near_range_sigma_m * stated, rates, planar=True)
+    noise = _noise_spec(
+        nominal.scaled(stated), laser.near_range_sigma_m * stated, rates, planar=True
+    )
     metadata = _metadata(
-        "guerreiro-loop", seed, options,
-        path_length_m=float(motion.path.length_m), laser_bearing_sigma_deg=3.75,
+        "guerreiro-loop",
+        seed,
+        options,
+        path_length_m=float(motion.path.length_m),
+        laser_bearing_sigma_deg=3.75,
         laser_range_sigma_m={"up_to_10_m": 0.15, "beyond_10_m": 0.25},
     )
-    return build_sequence("sim:guerreiro-loop", data, noise, options.ids, metadata, generators["initial"], drawn, stated)
+    return build_sequence(
+        "sim:guerreiro-loop",
+        data,
+        noise,
+        options.ids,
+        metadata,
+        generators["initial"],
+        drawn,
+        stated,
+    )
 
 
 _SCENARIOS: dict[str, tuple[type[BaseModel], Callable[[int, BaseModel], Sequence], str]] = {
-    "aghili-rover": (AghiliRoverOptions, aghili_rover, "Aghili sec. 5: 3-D rover loop through 7 via points on a 30x60 m sloped terrain, 1 m/s, IMU 20 Hz, landmarks 10 Hz, one lap 144 s"),
-    "guerreiro-loop": (GuerreiroLoopOptions, guerreiro_loop, "Guerreiro sec. V: 2-D 60 m corridor loop at 0.4 m/s (150 s), 76 wall corners, laser 10 Hz with line of sight, rate gyro 10 Hz"),
-    "circle": (CircleOptions, circle, "3-D level circle, r 10 m at 2 m/s, IMU 100 Hz + landmarks, 60 s"),
+    "aghili-rover": (
+        AghiliRoverOptions,
+        aghili_rover,
+        "Aghili sec. 5: 3-D rover loop through 7 via points on a 30x60 m sloped terrain, 1 m/s, IMU 20 Hz, landmarks 10 Hz, one lap 144 s",
+    ),
+    "guerreiro-loop": (
+        GuerreiroLoopOptions,
+        guerreiro_loop,
+        "Guerreiro sec. V: 2-D 60 m corridor loop at 0.4 m/s (150 s), 76 wall corners, laser 10 Hz with line of sight, rate gyro 10 Hz",
+    ),
+    "circle": (
+        CircleOptions,
+        circle,
+        "3-D level circle, r 10 m at 2 m/s, IMU 100 Hz + landmarks, 60 s",
+    ),
     "static": (StaticOptions, static, "3-D vehicle at rest (tilted), IMU 100 Hz + landmarks, 60 s"),
 }
 
@@ -398,7 +562,9 @@ SCENARIO_NAMES: tuple[str, ...] = tuple(_SCENARIOS)
 def load_scenario(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
     """Simulate scenario ``argument`` with noise ``seed`` and ``--data`` options."""
     if argument not in _SCENARIOS:
-        raise InputError(f"unknown simulation scenario '{argument}' (known: {', '.join(_SCENARIOS)})")
+        raise InputError(
+            f"unknown simulation scenario '{argument}' (known: {', '.join(_SCENARIOS)})"
+        )
     model, simulate, _ = _SCENARIOS[argument]
     parsed = parse_options(model, options, f"sim:{argument} --data")
     return simulate(int(seed), parsed)

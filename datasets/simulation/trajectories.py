@@ -67,7 +67,11 @@ def rotation_zyx(yaw: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.nda
 
 
 def body_rate_zyx(
-    pitch: np.ndarray, roll: np.ndarray, yaw_rate: np.ndarray, pitch_rate: np.ndarray, roll_rate: np.ndarray
+    pitch: np.ndarray,
+    roll: np.ndarray,
+    yaw_rate: np.ndarray,
+    pitch_rate: np.ndarray,
+    roll_rate: np.ndarray,
 ) -> np.ndarray:
     """Body angular rate [rad/s], shape (N, 3), of ``Rz(yaw) Ry(pitch) Rx(roll)`` from the
     Euler angle rates (the standard ZYX kinematic relation)."""
@@ -190,7 +194,9 @@ class CircleMotion:
             t=t,
             position=self.center + np.column_stack([radius * cos, radius * sin, zero]),
             velocity=np.column_stack([-radius * omega * sin, radius * omega * cos, zero]),
-            acceleration=np.column_stack([-radius * omega**2 * cos, -radius * omega**2 * sin, zero]),
+            acceleration=np.column_stack(
+                [-radius * omega**2 * cos, -radius * omega**2 * sin, zero]
+            ),
             rotation=rotation_zyx(yaw, zero, zero),
             body_rate=np.column_stack([zero, zero, np.full_like(t, omega)]),
         )
@@ -237,7 +243,9 @@ class _Corner:
     def heading(self, u: np.ndarray) -> np.ndarray:
         """Heading after arc length u in [0, length] into the turn."""
         length = self.length_m
-        return self.start_heading + (self.turn_rad / length) * (u - length / (2 * np.pi) * np.sin(2 * np.pi * u / length))
+        return self.start_heading + (self.turn_rad / length) * (
+            u - length / (2 * np.pi) * np.sin(2 * np.pi * u / length)
+        )
 
     def curvature(self, u: np.ndarray) -> np.ndarray:
         """Curvature [1/m]: a raised cosine, zero with zero slope at both ends (heading C2)."""
@@ -285,7 +293,9 @@ class RoundedPolylinePath:
             offset = _turn_offsets(turn_length_m, turn)
             straight = lengths[index - 1] - previous_exit - offset
             if straight < 0:
-                raise ValueError(f"polyline segment {index} too short for rounded turns of {turn_length_m} m")
+                raise ValueError(
+                    f"polyline segment {index} too short for rounded turns of {turn_length_m} m"
+                )
             point = point + straight * np.array([np.cos(heading), np.sin(heading)])
             s += straight
             corner = _Corner(s, turn_length_m, turn, point.copy(), heading)
@@ -311,11 +321,19 @@ class RoundedPolylinePath:
         heading = np.zeros(len(s))
         curvature = np.zeros(len(s))
         # Walk the pieces: straight before each corner, the corner, and the final straight.
-        straight_start_s, straight_point, straight_heading = 0.0, self.start_point, self.start_heading
+        straight_start_s, straight_point, straight_heading = (
+            0.0,
+            self.start_point,
+            self.start_heading,
+        )
         pieces = []
         for corner in self.corners:
-            pieces.append(("straight", straight_start_s, corner.start_s, straight_point, straight_heading))
-            pieces.append(("corner", corner.start_s, corner.start_s + corner.length_m, corner, None))
+            pieces.append(
+                ("straight", straight_start_s, corner.start_s, straight_point, straight_heading)
+            )
+            pieces.append(
+                ("corner", corner.start_s, corner.start_s + corner.length_m, corner, None)
+            )
             straight_start_s = corner.start_s + corner.length_m
             straight_point = corner.point(np.array([corner.length_m]))[0]
             straight_heading = corner.start_heading + corner.turn_rad
@@ -371,7 +389,14 @@ class RandomSpeed:
 
     GRID_S = 0.01
 
-    def __init__(self, mean_m_s: float, sigma: float, duration_s: float, rng: np.random.Generator, tau_s: float = 5.0):
+    def __init__(
+        self,
+        mean_m_s: float,
+        sigma: float,
+        duration_s: float,
+        rng: np.random.Generator,
+        tau_s: float = 5.0,
+    ):
         self.mean_m_s = float(mean_m_s)
         self.duration_s = float(duration_s)
         count = int(np.ceil(self.duration_s / self.GRID_S)) + 2
@@ -384,7 +409,11 @@ class RandomSpeed:
         speed = self.mean_m_s + deviation
         self._times = np.arange(count) * self.GRID_S
         distance = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * self.GRID_S)])
-        scale = self.mean_m_s * self.duration_s / float(np.interp(self.duration_s, self._times, distance))
+        scale = (
+            self.mean_m_s
+            * self.duration_s
+            / float(np.interp(self.duration_s, self._times, distance))
+        )
         self._speed = speed * scale
         self._distance = distance * scale
         if np.min(self._speed) <= 0.0:

@@ -23,7 +23,10 @@ class LidarModel(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    beams: int = Field(16, description="number of beams: 16 (-15..15 deg, 2 deg apart) or 32 (-22..9 deg, 1 deg apart)")
+    beams: int = Field(
+        16,
+        description="number of beams: 16 (-15..15 deg, 2 deg apart) or 32 (-22..9 deg, 1 deg apart)",
+    )
     columns: int = Field(1800, ge=16, description="azimuth columns per revolution")
     rate_hz: float = Field(10.0, gt=0, description="revolutions per second")
     max_range_m: float = Field(40.0, gt=0, description="farthest return [m]")
@@ -56,7 +59,9 @@ class Sweep:
     ring: np.ndarray
 
 
-def cast_rays(world: World, origins: np.ndarray, directions: np.ndarray, max_range_m: float) -> np.ndarray:
+def cast_rays(
+    world: World, origins: np.ndarray, directions: np.ndarray, max_range_m: float
+) -> np.ndarray:
     """Distance along each unit ray to the first wall or floor hit, inf if none within range.
 
     Args:
@@ -74,7 +79,14 @@ def cast_rays(world: World, origins: np.ndarray, directions: np.ndarray, max_ran
         lam = (offset[..., 0] * edge[..., 1] - offset[..., 1] * edge[..., 0]) / denominator
         mu = (offset[..., 0] * d_xy[..., 1] - offset[..., 1] * d_xy[..., 0]) / denominator
         z = origins[:, None, 2] + lam * directions[:, None, 2]
-    valid = (np.abs(denominator) > 1e-12) & (lam > 0) & (mu >= 0) & (mu <= 1) & (z >= 0) & (z <= world.wall_height[None])
+    valid = (
+        (np.abs(denominator) > 1e-12)
+        & (lam > 0)
+        & (mu >= 0)
+        & (mu <= 1)
+        & (z >= 0)
+        & (z <= world.wall_height[None])
+    )
     wall = np.where(valid, lam, np.inf).min(axis=1)
     with np.errstate(divide="ignore"):
         floor = np.where(directions[:, 2] < 0, -origins[:, 2] / directions[:, 2], np.inf)
@@ -82,7 +94,14 @@ def cast_rays(world: World, origins: np.ndarray, directions: np.ndarray, max_ran
     return np.where(distance <= max_range_m, distance, np.inf)
 
 
-def sweep(world: World, path: LoopPath, model: LidarModel, t0: float, rng: np.random.Generator, chunk_columns: int = 256) -> Sweep:
+def sweep(
+    world: World,
+    path: LoopPath,
+    model: LidarModel,
+    t0: float,
+    rng: np.random.Generator,
+    chunk_columns: int = 256,
+) -> Sweep:
     """Ray-cast one revolution starting at ``t0`` [s] (columns from azimuth -pi, CCW)."""
     elevations = model.elevations_rad()
     azimuths = -np.pi + 2.0 * np.pi * np.arange(model.columns) / model.columns
@@ -102,10 +121,19 @@ def sweep(world: World, path: LoopPath, model: LidarModel, t0: float, rng: np.ra
         yaw = motion.yaw[cols]
         c, s = np.cos(yaw)[None, :], np.sin(yaw)[None, :]
         local = beam_dirs[:, cols]
-        world_dirs = np.stack([c * local[..., 0] - s * local[..., 1], s * local[..., 0] + c * local[..., 1], local[..., 2]], axis=-1)
+        world_dirs = np.stack(
+            [
+                c * local[..., 0] - s * local[..., 1],
+                s * local[..., 0] + c * local[..., 1],
+                local[..., 2],
+            ],
+            axis=-1,
+        )
         origin = np.column_stack([motion.position[cols], np.full(yaw.shape[0], model.height_m)])
         origins = np.broadcast_to(origin[None], world_dirs.shape)
-        distances[:, cols] = cast_rays(world, origins.reshape(-1, 3), world_dirs.reshape(-1, 3), model.max_range_m).reshape(len(elevations), -1)
+        distances[:, cols] = cast_rays(
+            world, origins.reshape(-1, 3), world_dirs.reshape(-1, 3), model.max_range_m
+        ).reshape(len(elevations), -1)
     noisy = distances + rng.normal(0.0, model.range_sigma_m, distances.shape)
     hit = np.isfinite(distances) & (noisy >= model.min_range_m)
     points = np.where(hit, noisy, np.nan)[..., None] * beam_dirs

@@ -40,19 +40,39 @@ def _turn_curvature(radius_m: float, ramp_m: float) -> tuple[np.ndarray, np.ndar
     hold = 0.5 * np.pi * radius_m - ramp_m  # heading change kappa * (ramp + hold) = pi / 2
     if hold < 0:
         raise ValueError("ramp_m too long for a 90-degree turn of this radius")
-    return np.array([0.0, ramp_m, ramp_m + hold, 2 * ramp_m + hold]), np.array([0.0, kappa, kappa, 0.0])
+    return np.array([0.0, ramp_m, ramp_m + hold, 2 * ramp_m + hold]), np.array(
+        [0.0, kappa, kappa, 0.0]
+    )
 
 
 class LoopPath:
     """Rounded rectangle with straights on ``y = y0``, ``x = x1``, ``y = y1``, ``x = x0``,
     driven counter-clockwise at ``speed_m_s`` from the middle of the bottom straight."""
 
-    def __init__(self, x0: float = 2.5, y0: float = 2.5, x1: float = 27.5, y1: float = 17.5, radius_m: float = 2.0, ramp_m: float = 1.0, speed_m_s: float = 1.5, step_m: float = 0.005) -> None:
+    def __init__(
+        self,
+        x0: float = 2.5,
+        y0: float = 2.5,
+        x1: float = 27.5,
+        y1: float = 17.5,
+        radius_m: float = 2.0,
+        ramp_m: float = 1.0,
+        speed_m_s: float = 1.5,
+        step_m: float = 0.005,
+    ) -> None:
         self.speed_m_s = speed_m_s
         turn_s, turn_k = _turn_curvature(radius_m, ramp_m)
         # displacement of one turn (start heading 0): the straights end that far from the sides
         s_fine = np.linspace(0.0, turn_s[-1], 20001)
-        heading = np.concatenate([[0.0], np.cumsum(np.diff(s_fine) * 0.5 * np.diff(np.interp(s_fine, turn_s, turn_k)) + np.diff(s_fine) * np.interp(s_fine, turn_s, turn_k)[:-1])])
+        heading = np.concatenate(
+            [
+                [0.0],
+                np.cumsum(
+                    np.diff(s_fine) * 0.5 * np.diff(np.interp(s_fine, turn_s, turn_k))
+                    + np.diff(s_fine) * np.interp(s_fine, turn_s, turn_k)[:-1]
+                ),
+            ]
+        )
         ds = np.diff(s_fine)
         advance = float(np.sum(ds * 0.5 * (np.cos(heading[1:]) + np.cos(heading[:-1]))))
         side = (x1 - x0) - 2 * advance, (y1 - y0) - 2 * advance
@@ -85,8 +105,12 @@ class LoopPath:
         # curvature is linear between grid points (knots are few), so the trapezoid is exact
         # up to the knots falling inside a cell
         heading = np.concatenate([[0.0], np.cumsum(ds * 0.5 * (kappa[1:] + kappa[:-1]))])
-        x = 0.5 * (x0 + x1) + np.concatenate([[0.0], np.cumsum(ds * 0.5 * (np.cos(heading[1:]) + np.cos(heading[:-1])))])
-        y = y0 + np.concatenate([[0.0], np.cumsum(ds * 0.5 * (np.sin(heading[1:]) + np.sin(heading[:-1])))])
+        x = 0.5 * (x0 + x1) + np.concatenate(
+            [[0.0], np.cumsum(ds * 0.5 * (np.cos(heading[1:]) + np.cos(heading[:-1])))]
+        )
+        y = y0 + np.concatenate(
+            [[0.0], np.cumsum(ds * 0.5 * (np.sin(heading[1:]) + np.sin(heading[:-1])))]
+        )
         self._s, self._heading, self._x, self._y = s, heading, x, y
 
     def sample(self, t: np.ndarray) -> PathSample:
@@ -99,7 +123,9 @@ class LoopPath:
         direction = np.column_stack([np.cos(heading), np.sin(heading)])
         normal = np.column_stack([-np.sin(heading), np.cos(heading)])
         return PathSample(
-            position=np.column_stack([np.interp(s, self._s, self._x), np.interp(s, self._s, self._y)]),
+            position=np.column_stack(
+                [np.interp(s, self._s, self._x), np.interp(s, self._s, self._y)]
+            ),
             yaw=np.mod(heading + 2.0 * np.pi * laps + np.pi, 2.0 * np.pi) - np.pi,
             velocity=v * direction,
             acceleration=(v * v * kappa)[:, None] * normal,

@@ -62,20 +62,24 @@ class World:
     wall_height: np.ndarray
 
     @staticmethod
-    def from_polygons(polygons: tuple[Polygon, ...]) -> "World":
+    def from_polygons(polygons: tuple[Polygon, ...]) -> World:
         starts, ends, heights = [], [], []
         for polygon in polygons:
             start, end = polygon.edges()
             starts.append(start)
             ends.append(end)
             heights.append(np.full(len(start), polygon.height_m))
-        return World(polygons, np.concatenate(starts), np.concatenate(ends), np.concatenate(heights))
+        return World(
+            polygons, np.concatenate(starts), np.concatenate(ends), np.concatenate(heights)
+        )
 
     def corners(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All corners: positions (K, 2), face normals (K, 2, 2), prism heights (K,)."""
         positions = np.concatenate([polygon.vertices for polygon in self.polygons])
         normals = np.concatenate([polygon.corner_normals() for polygon in self.polygons])
-        heights = np.concatenate([np.full(len(polygon.vertices), polygon.height_m) for polygon in self.polygons])
+        heights = np.concatenate(
+            [np.full(len(polygon.vertices), polygon.height_m) for polygon in self.polygons]
+        )
         return positions, normals, heights
 
 

@@ -46,7 +46,9 @@ class LidarBagOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     duration_s: float = Field(8.0, gt=0, description="recording length [s]")
-    start_s: float = Field(0.0, ge=0, description="where along the loop to start, as time at speed [s]")
+    start_s: float = Field(
+        0.0, ge=0, description="where along the loop to start, as time at speed [s]"
+    )
     speed_m_s: float = Field(1.5, gt=0, description="vehicle speed [m/s] (the loop is 76.4 m)")
     beams: int = Field(16, description="lidar beams: 16 or 32")
     columns: int = Field(1024, ge=16, description="azimuth columns per revolution")
@@ -57,9 +59,17 @@ class LidarBagOptions(BaseModel):
     accel_noise_density: float = Field(2e-3, ge=0, description="[m/s^2/sqrt(Hz)]")
     gt_rate_hz: float = Field(50.0, gt=0, description="ground-truth rate [Hz]")
     gps_rate_hz: float = Field(0.0, ge=0, description="NavSatFix rate [Hz] (0: no GPS topic)")
-    gps_origin: tuple[float, float, float] = Field((48.137, 11.575, 520.0), description="lat [deg], lon [deg], alt [m] of the world origin")
-    storage: str = Field("sqlite3", pattern="^(sqlite3|mcap)$", description="ROS 2 storage plugin: sqlite3 or mcap")
-    time_field: str = Field("auto", pattern="^(auto|time|t|timestamp|offset_time|none)$", description="per-point time field (auto: time for ros1, t for ros2)")
+    gps_origin: tuple[float, float, float] = Field(
+        (48.137, 11.575, 520.0), description="lat [deg], lon [deg], alt [m] of the world origin"
+    )
+    storage: str = Field(
+        "sqlite3", pattern="^(sqlite3|mcap)$", description="ROS 2 storage plugin: sqlite3 or mcap"
+    )
+    time_field: str = Field(
+        "auto",
+        pattern="^(auto|time|t|timestamp|offset_time|none)$",
+        description="per-point time field (auto: time for ros1, t for ros2)",
+    )
 
 
 def sidecar_path(bag_path: Path) -> Path:
@@ -69,7 +79,9 @@ def sidecar_path(bag_path: Path) -> Path:
 
 def _stamp(typestore, t: float):
     ns = int(round((EPOCH_S + t) * 1e9))
-    return typestore.types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+    return typestore.types["builtin_interfaces/msg/Time"](
+        sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000
+    )
 
 
 def _header(typestore, ros1: bool, t: float, frame: str):
@@ -81,13 +93,26 @@ def _header(typestore, ros1: bool, t: float, frame: str):
 
 def _cloud_layout(time_field: str) -> tuple[np.dtype, list[tuple[str, int, int]]]:
     """Structured dtype with padding, and its (name, offset, datatype) PointFields."""
-    fields = [("x", 0, _FLOAT32), ("y", 4, _FLOAT32), ("z", 8, _FLOAT32), ("intensity", 16, _FLOAT32), ("ring", 20, _UINT16)]
+    fields = [
+        ("x", 0, _FLOAT32),
+        ("y", 4, _FLOAT32),
+        ("z", 8, _FLOAT32),
+        ("intensity", 16, _FLOAT32),
+        ("ring", 20, _UINT16),
+    ]
     if time_field in ("time", "timestamp"):
         fields.append((time_field, 24, _FLOAT64 if time_field == "timestamp" else _FLOAT32))
     elif time_field in ("t", "offset_time"):
         fields.append((time_field, 24, _UINT32))
     numpy_type = {_FLOAT32: "<f4", _FLOAT64: "<f8", _UINT16: "<u2", _UINT32: "<u4"}
-    dtype = np.dtype({"names": [f[0] for f in fields], "formats": [numpy_type[f[2]] for f in fields], "offsets": [f[1] for f in fields], "itemsize": 32})
+    dtype = np.dtype(
+        {
+            "names": [f[0] for f in fields],
+            "formats": [numpy_type[f[2]] for f in fields],
+            "offsets": [f[1] for f in fields],
+            "itemsize": 32,
+        }
+    )
     return dtype, fields
 
 
@@ -119,20 +144,29 @@ def enu_to_geodetic(enu: np.ndarray, origin: tuple[float, float, float]) -> np.n
 
 def _events(options: LidarBagOptions) -> Iterator[tuple[int, str, float]]:
     """(log time ns, topic, stamp s) in log-time order. A cloud is logged at its sweep end."""
-    def stream(topic: str, rate: float, log_delay: float, through_end: bool = False) -> Iterator[tuple[int, str, float]]:
+
+    def stream(
+        topic: str, rate: float, log_delay: float, through_end: bool = False
+    ) -> Iterator[tuple[int, str, float]]:
         # ground truth runs through the end of the last sweep, so every frame can be scored
         count = int(np.floor(options.duration_s * rate + 1e-9)) + (1 if through_end else 0)
         for k in range(count):
             stamp = k / rate
             yield int(round((EPOCH_S + stamp + log_delay) * 1e9)), topic, stamp
 
-    streams = [stream(LIDAR_TOPIC, options.lidar_rate_hz, 1.0 / options.lidar_rate_hz), stream(IMU_TOPIC, options.imu_rate_hz, 0.0), stream(GT_TOPIC, options.gt_rate_hz, 0.0, through_end=True)]
+    streams = [
+        stream(LIDAR_TOPIC, options.lidar_rate_hz, 1.0 / options.lidar_rate_hz),
+        stream(IMU_TOPIC, options.imu_rate_hz, 0.0),
+        stream(GT_TOPIC, options.gt_rate_hz, 0.0, through_end=True),
+    ]
     if options.gps_rate_hz > 0:
         streams.append(stream(GPS_TOPIC, options.gps_rate_hz, 0.0))
     return heapq.merge(*streams)
 
 
-def write_sidecar(bag_path: Path, world: World, model: LidarModel, options: LidarBagOptions) -> Path:
+def write_sidecar(
+    bag_path: Path, world: World, model: LidarModel, options: LidarBagOptions
+) -> Path:
     """Exact corners (world frame, at the sensor height) and the world polygons as JSON."""
     positions, normals, heights = world.corners()
     payload = {
@@ -141,10 +175,22 @@ def write_sidecar(bag_path: Path, world: World, model: LidarModel, options: Lida
         "slab_height_m": model.height_m,
         "max_range_m": model.max_range_m,
         "corners": [
-            {"id": int(i), "position": [float(p[0]), float(p[1]), model.height_m], "face_normals": normals[i].tolist(), "height_m": float(heights[i])}
+            {
+                "id": int(i),
+                "position": [float(p[0]), float(p[1]), model.height_m],
+                "face_normals": normals[i].tolist(),
+                "height_m": float(heights[i]),
+            }
             for i, p in enumerate(positions)
         ],
-        "polygons": [{"kind": polygon.kind, "height_m": polygon.height_m, "vertices": polygon.vertices.tolist()} for polygon in world.polygons],
+        "polygons": [
+            {
+                "kind": polygon.kind,
+                "height_m": polygon.height_m,
+                "vertices": polygon.vertices.tolist(),
+            }
+            for polygon in world.polygons
+        ],
         "options": options.model_dump(),
     }
     return write_atomic(sidecar_path(bag_path), json.dumps(payload, indent=1))
@@ -176,7 +222,12 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
     ros1 = fmt == "ros1"
     typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     time_field = settings.time_field if settings.time_field != "auto" else ("time" if ros1 else "t")
-    model = LidarModel(beams=settings.beams, columns=settings.columns, rate_hz=settings.lidar_rate_hz, range_sigma_m=settings.range_sigma_m)
+    model = LidarModel(
+        beams=settings.beams,
+        columns=settings.columns,
+        rate_hz=settings.lidar_rate_hz,
+        range_sigma_m=settings.range_sigma_m,
+    )
     world, path = corridor_world(), LoopPath(speed_m_s=settings.speed_m_s)
     rng = np.random.default_rng(seed)
     serialize = typestore.serialize_ros1 if ros1 else typestore.serialize_cdr
@@ -194,19 +245,24 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
 
         writer = Writer1(temp)
     else:
-        from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+        from rosbags.rosbag2 import StoragePlugin
+        from rosbags.rosbag2 import Writer as Writer2
 
         plugin = StoragePlugin.MCAP if settings.storage == "mcap" else StoragePlugin.SQLITE3
         writer = Writer2(temp, version=9, storage_plugin=plugin)
     gt_type = "nav_msgs/msg/Odometry" if ros1 else "geometry_msgs/msg/PoseStamped"
     with writer:
         connections = {
-            LIDAR_TOPIC: writer.add_connection(LIDAR_TOPIC, "sensor_msgs/msg/PointCloud2", typestore=typestore),
+            LIDAR_TOPIC: writer.add_connection(
+                LIDAR_TOPIC, "sensor_msgs/msg/PointCloud2", typestore=typestore
+            ),
             IMU_TOPIC: writer.add_connection(IMU_TOPIC, "sensor_msgs/msg/Imu", typestore=typestore),
             GT_TOPIC: writer.add_connection(GT_TOPIC, gt_type, typestore=typestore),
         }
         if settings.gps_rate_hz > 0:
-            connections[GPS_TOPIC] = writer.add_connection(GPS_TOPIC, "sensor_msgs/msg/NavSatFix", typestore=typestore)
+            connections[GPS_TOPIC] = writer.add_connection(
+                GPS_TOPIC, "sensor_msgs/msg/NavSatFix", typestore=typestore
+            )
         imu_gyro_std = settings.gyro_noise_density * np.sqrt(settings.imu_rate_hz)
         imu_accel_std = settings.accel_noise_density * np.sqrt(settings.imu_rate_hz)
         zeros9 = np.zeros(9)
@@ -227,18 +283,37 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
                     cloud[time_field] = EPOCH_S + stamp + offsets
                 elif time_field == "time":
                     cloud[time_field] = offsets
-                fields = [types["sensor_msgs/msg/PointField"](name=name, offset=offset, datatype=datatype, count=1) for name, offset, datatype in layout]
+                fields = [
+                    types["sensor_msgs/msg/PointField"](
+                        name=name, offset=offset, datatype=datatype, count=1
+                    )
+                    for name, offset, datatype in layout
+                ]
                 message = types["sensor_msgs/msg/PointCloud2"](
-                    header=header, height=cloud.shape[0], width=cloud.shape[1], fields=fields, is_bigendian=False,
-                    point_step=dtype.itemsize, row_step=dtype.itemsize * cloud.shape[1],
-                    data=np.frombuffer(cloud.tobytes(), dtype=np.uint8), is_dense=False,
+                    header=header,
+                    height=cloud.shape[0],
+                    width=cloud.shape[1],
+                    fields=fields,
+                    is_bigendian=False,
+                    point_step=dtype.itemsize,
+                    row_step=dtype.itemsize * cloud.shape[1],
+                    data=np.frombuffer(cloud.tobytes(), dtype=np.uint8),
+                    is_dense=False,
                 )
             elif topic == IMU_TOPIC:
                 motion = path.sample(np.array([t]))
                 yaw = motion.yaw[0]
                 c, s = np.cos(yaw), np.sin(yaw)
-                accel_world = np.array([motion.acceleration[0, 0], motion.acceleration[0, 1], GRAVITY_M_S2])
-                accel_body = np.array([c * accel_world[0] + s * accel_world[1], -s * accel_world[0] + c * accel_world[1], accel_world[2]])
+                accel_world = np.array(
+                    [motion.acceleration[0, 0], motion.acceleration[0, 1], GRAVITY_M_S2]
+                )
+                accel_body = np.array(
+                    [
+                        c * accel_world[0] + s * accel_world[1],
+                        -s * accel_world[0] + c * accel_world[1],
+                        accel_world[2],
+                    ]
+                )
                 gyro = np.array([0.0, 0.0, motion.yaw_rate[0]]) + rng.normal(0, imu_gyro_std, 3)
                 accel_body = accel_body + rng.normal(0, imu_accel_std, 3)
                 vec = types["geometry_msgs/msg/Vector3"]
@@ -255,29 +330,48 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
                 motion = path.sample(np.array([t]))
                 w, x, y, z = _quat_yaw(motion.yaw[0])
                 pose = types["geometry_msgs/msg/Pose"](
-                    position=types["geometry_msgs/msg/Point"](x=float(motion.position[0, 0]), y=float(motion.position[0, 1]), z=model.height_m),
+                    position=types["geometry_msgs/msg/Point"](
+                        x=float(motion.position[0, 0]),
+                        y=float(motion.position[0, 1]),
+                        z=model.height_m,
+                    ),
                     orientation=types["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w),
                 )
                 if ros1:
                     vec = types["geometry_msgs/msg/Vector3"]
                     speed = float(np.linalg.norm(motion.velocity[0]))
                     twist = types["geometry_msgs/msg/TwistWithCovariance"](
-                        twist=types["geometry_msgs/msg/Twist"](linear=vec(x=speed, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=float(motion.yaw_rate[0]))),
+                        twist=types["geometry_msgs/msg/Twist"](
+                            linear=vec(x=speed, y=0.0, z=0.0),
+                            angular=vec(x=0.0, y=0.0, z=float(motion.yaw_rate[0])),
+                        ),
                         covariance=np.zeros(36),
                     )
                     message = types["nav_msgs/msg/Odometry"](
-                        header=header, child_frame_id="base_link",
-                        pose=types["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)), twist=twist,
+                        header=header,
+                        child_frame_id="base_link",
+                        pose=types["geometry_msgs/msg/PoseWithCovariance"](
+                            pose=pose, covariance=np.zeros(36)
+                        ),
+                        twist=twist,
                     )
                 else:
                     message = types["geometry_msgs/msg/PoseStamped"](header=header, pose=pose)
             else:  # GPS
                 motion = path.sample(np.array([t]))
-                lat, lon, alt = enu_to_geodetic(np.array([[motion.position[0, 0], motion.position[0, 1], model.height_m]]), settings.gps_origin)[0]
+                lat, lon, alt = enu_to_geodetic(
+                    np.array([[motion.position[0, 0], motion.position[0, 1], model.height_m]]),
+                    settings.gps_origin,
+                )[0]
                 status = types["sensor_msgs/msg/NavSatStatus"](status=0, service=1)
                 message = types["sensor_msgs/msg/NavSatFix"](
-                    header=header, status=status, latitude=float(lat), longitude=float(lon), altitude=float(alt),
-                    position_covariance=np.eye(3).ravel() * 1e-4, position_covariance_type=2,
+                    header=header,
+                    status=status,
+                    latitude=float(lat),
+                    longitude=float(lon),
+                    altitude=float(alt),
+                    position_covariance=np.eye(3).ravel() * 1e-4,
+                    position_covariance_type=2,
                 )
             writer.write(connections[topic], log_ns, serialize(message, message.__msgtype__))
     if not ros1:  # rosbag2 names its storage file after the folder

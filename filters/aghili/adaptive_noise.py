@@ -56,7 +56,11 @@ class SlidingWindowNoise:
     """
 
     def __init__(
-        self, window: int, min_sigma_m: float, min_samples: int | None = None, residual: ResidualKind = "prior"
+        self,
+        window: int,
+        min_sigma_m: float,
+        min_samples: int | None = None,
+        residual: ResidualKind = "prior",
     ) -> None:
         if window < 1:
             raise ValueError(f"adaptive window must be >= 1, got {window}")
@@ -64,7 +68,9 @@ class SlidingWindowNoise:
             raise ValueError(f"residual must be 'prior' or 'posterior', got {residual!r}")
         self.window = int(window)
         self.min_variance = float(min_sigma_m) ** 2
-        self.min_samples = self.window if min_samples is None else min(int(min_samples), self.window)
+        self.min_samples = (
+            self.window if min_samples is None else min(int(min_samples), self.window)
+        )
         self.residual = residual
         self._sign = -1.0 if residual == "prior" else 1.0
         # ring buffers of the last w outer products and H P H^T blocks

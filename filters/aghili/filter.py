@@ -53,7 +53,11 @@ from filters.aghili import quaternion_jpl as quat
 from filters.aghili.adaptive_noise import SlidingWindowNoise
 from filters.aghili.measurement import predict, sensitivity
 from filters.aghili.observability import gauge_rotation_direction, variance_along
-from filters.aghili.process_noise import noise_covariance, process_noise_van_loan, vehicle_process_noise
+from filters.aghili.process_noise import (
+    noise_covariance,
+    process_noise_van_loan,
+    vehicle_process_noise,
+)
 from filters.aghili.transition import (
     ACCEL_BIAS,
     ATTITUDE,
@@ -74,17 +78,25 @@ class AghiliConfig(BaseModel):
     """Options of the Aghili adaptive EKF SLAM (``--set key=value``)."""
 
     model_config = ConfigDict(extra="forbid")
-    anchors: int = Field(3, ge=1, description="r: number of known anchor landmarks fixing the map (section 2.1)")
+    anchors: int = Field(
+        3, ge=1, description="r: number of known anchor landmarks fixing the map (section 2.1)"
+    )
     anchor_source: Literal["known", "first-observation"] = Field(
         "known",
         description="'known': the dataset's surveyed positions (NEES against truth meaningful); "
         "'first-observation': the paper's choice, from the first noisy observation (NEES not comparable)",
     )
     adaptive_noise: bool = Field(True, description="estimate R on line (section 4.4, eq. (42))")
-    adaptive_window: int = Field(300, ge=10, description="w: landmark residuals in the eq. (42) sliding window")
-    adaptive_min_sigma_m: float = Field(0.005, gt=0, description="floor on the adapted landmark std [m] (keeps R PD)")
+    adaptive_window: int = Field(
+        300, ge=10, description="w: landmark residuals in the eq. (42) sliding window"
+    )
+    adaptive_min_sigma_m: float = Field(
+        0.005, gt=0, description="floor on the adapted landmark std [m] (keeps R PD)"
+    )
     adaptive_min_samples: int = Field(
-        30, ge=3, description="landmark residuals in the window before the adapted R replaces the initial one"
+        30,
+        ge=3,
+        description="landmark residuals in the window before the adapted R replaces the initial one",
     )
     adaptive_residual: Literal["posterior", "prior"] = Field(
         "posterior",
@@ -92,25 +104,37 @@ class AghiliConfig(BaseModel):
         "or on prior residuals as printed, R = W - H P- H^T",
     )
     landmark_sigma_m: float | None = Field(
-        None, gt=0, description="initial/fixed landmark std [m]; None: the covariances the scans carry"
+        None,
+        gt=0,
+        description="initial/fixed landmark std [m]; None: the covariances the scans carry",
     )
     process_noise: Literal["closed-form", "van-loan"] = Field(
-        "closed-form", description="Q' by the verified closed form or by Van Loan's matrix exponential"
+        "closed-form",
+        description="Q' by the verified closed form or by Van Loan's matrix exponential",
     )
     initial_velocity_sigma_m_s: float | None = Field(
         None, ge=0, description="initial velocity std [m/s]; None: the dataset's initial state"
     )
     initial_gyro_bias_sigma_rad_s: float | None = Field(
-        None, ge=0, description="initial gyro bias std [rad/s]; None: the dataset's noise spec, else 0.01"
+        None,
+        ge=0,
+        description="initial gyro bias std [rad/s]; None: the dataset's noise spec, else 0.01",
     )
     initial_accel_bias_sigma_m_s2: float | None = Field(
-        None, ge=0, description="initial accelerometer bias std [m/s^2]; None: the dataset's noise spec, else 0.1"
+        None,
+        ge=0,
+        description="initial accelerometer bias std [m/s^2]; None: the dataset's noise spec, else 0.1",
     )
     association: Literal["auto", "jcbb", "nearest"] = Field(
-        "auto", description="'auto': ids when scans carry them, else JCBB; 'jcbb'/'nearest' ignore ids"
+        "auto",
+        description="'auto': ids when scans carry them, else JCBB; 'jcbb'/'nearest' ignore ids",
     )
-    gate_probability: float = Field(0.999, gt=0, lt=1, description="chi-square gate for association")
-    snapshot_interval_s: float = Field(1.0, gt=0, description="landmark map snapshot period in the history [s]")
+    gate_probability: float = Field(
+        0.999, gt=0, lt=1, description="chi-square gate for association"
+    )
+    snapshot_interval_s: float = Field(
+        1.0, gt=0, description="landmark map snapshot period in the history [s]"
+    )
     max_gap_s: float = Field(1.0, gt=0, description="an IMU gap longer than this is an error [s]")
 
 
@@ -118,14 +142,18 @@ class AghiliFilter:
     """Aghili adaptive IMU error-state EKF SLAM (registered as ``aghili``)."""
 
     Config: ClassVar[type[BaseModel]] = AghiliConfig
-    sensor_options: ClassVar[tuple[frozenset[Sensor], ...]] = (frozenset({Sensor.IMU, Sensor.LANDMARKS}),)
+    sensor_options: ClassVar[tuple[frozenset[Sensor], ...]] = (
+        frozenset({Sensor.IMU, Sensor.LANDMARKS}),
+    )
     dimensions: ClassVar[frozenset[int]] = frozenset({3})
 
     def __init__(self, config: AghiliConfig, sequence: Sequence) -> None:
         if sequence.dimension != 3:
             raise InputError(f"{sequence.name}: the Aghili filter is 3-D only")
         if sequence.initial_state is None:
-            raise InputError(f"{sequence.name}: the Aghili filter needs an initial state, the dataset gives none")
+            raise InputError(
+                f"{sequence.name}: the Aghili filter needs an initial state, the dataset gives none"
+            )
         self.config = config
         self.name = sequence.name
         self.recorder = EstimateRecorder(3)
@@ -133,12 +161,24 @@ class AghiliFilter:
         noise = sequence.noise
         missing = [
             name
-            for name in ("gyro_noise_density", "accel_noise_density", "gyro_bias_walk", "accel_bias_walk")
+            for name in (
+                "gyro_noise_density",
+                "accel_noise_density",
+                "gyro_bias_walk",
+                "accel_bias_walk",
+            )
             if getattr(noise, name) is None
         ]
         if missing:
-            raise InputError(f"{sequence.name}: the Aghili filter needs IMU noise densities; missing {', '.join(missing)}")
-        self.densities = (noise.gyro_noise_density, noise.gyro_bias_walk, noise.accel_noise_density, noise.accel_bias_walk)
+            raise InputError(
+                f"{sequence.name}: the Aghili filter needs IMU noise densities; missing {', '.join(missing)}"
+            )
+        self.densities = (
+            noise.gyro_noise_density,
+            noise.gyro_bias_walk,
+            noise.accel_noise_density,
+            noise.accel_bias_walk,
+        )
         self.sigma = noise_covariance(*self.densities)
 
         start = sequence.initial_state
@@ -153,10 +193,14 @@ class AghiliFilter:
             velocity_sigma = start.velocity_sigma_m_s
         gyro_bias_sigma = config.initial_gyro_bias_sigma_rad_s
         if gyro_bias_sigma is None:
-            gyro_bias_sigma = noise.gyro_bias_sigma_rad_s if noise.gyro_bias_sigma_rad_s is not None else 0.01
+            gyro_bias_sigma = (
+                noise.gyro_bias_sigma_rad_s if noise.gyro_bias_sigma_rad_s is not None else 0.01
+            )
         accel_bias_sigma = config.initial_accel_bias_sigma_m_s2
         if accel_bias_sigma is None:
-            accel_bias_sigma = noise.accel_bias_sigma_m_s2 if noise.accel_bias_sigma_m_s2 is not None else 0.1
+            accel_bias_sigma = (
+                noise.accel_bias_sigma_m_s2 if noise.accel_bias_sigma_m_s2 is not None else 0.1
+            )
         # The paper's P^-(0) gives the vehicle zero covariance; no real IMU knows its biases
         # exactly, so the initial velocity and bias covariances are configurable and nonzero.
         self.P = np.diag(
@@ -204,12 +248,17 @@ class AghiliFilter:
         # measurement noise
         self.noise_window = (
             SlidingWindowNoise(
-                config.adaptive_window, config.adaptive_min_sigma_m, config.adaptive_min_samples, config.adaptive_residual
+                config.adaptive_window,
+                config.adaptive_min_sigma_m,
+                config.adaptive_min_samples,
+                config.adaptive_residual,
             )
             if config.adaptive_noise
             else None
         )
-        self.fixed_r = None if config.landmark_sigma_m is None else np.eye(3) * config.landmark_sigma_m**2
+        self.fixed_r = (
+            None if config.landmark_sigma_m is None else np.eye(3) * config.landmark_sigma_m**2
+        )
 
         self._last_imu: ImuSample | None = None
         self._staged: tuple | None = None
@@ -223,7 +272,9 @@ class AghiliFilter:
             raise InputError(f"{self.name}: non-finite {what} time stamp after t={self.t:.6f} s")
         dt = t - self.t
         if dt < 0.0:
-            raise InputError(f"{self.name}: time goes backwards at {what} t={t:.6f} s (previous {self.t:.6f} s)")
+            raise InputError(
+                f"{self.name}: time goes backwards at {what} t={t:.6f} s (previous {self.t:.6f} s)"
+            )
         return dt
 
     def _propagate(self, dt: float, gyro: np.ndarray, accel: np.ndarray) -> None:
@@ -248,7 +299,9 @@ class AghiliFilter:
             F, G = error_dynamics(omega_bar, a_bar, attitude)
             q_vehicle = process_noise_van_loan(F, G, self.sigma, dt)
         else:
-            q_vehicle = vehicle_process_noise(omega_bar, a_bar, attitude, dt, *self.densities, lambdas=lambdas)
+            q_vehicle = vehicle_process_noise(
+                omega_bar, a_bar, attitude, dt, *self.densities, lambdas=lambdas
+            )
         # eq. (41b): the landmark-landmark block is untouched: O(n) per step
         v = VEHICLE_DIM
         P = self.P
@@ -262,11 +315,19 @@ class AghiliFilter:
     def _imu(self, sample: ImuSample) -> None:
         gyro = np.asarray(sample.gyro, dtype=float)
         accel = np.asarray(sample.accel, dtype=float)
-        if gyro.shape != (3,) or accel.shape != (3,) or not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(accel))):
-            raise InputError(f"{self.name}: non-finite or malformed IMU sample at t={sample.t:.6f} s")
+        if (
+            gyro.shape != (3,)
+            or accel.shape != (3,)
+            or not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(accel)))
+        ):
+            raise InputError(
+                f"{self.name}: non-finite or malformed IMU sample at t={sample.t:.6f} s"
+            )
         dt = self._check_time(float(sample.t), "IMU")
         if dt > self.config.max_gap_s and self._last_imu is not None:
-            raise InputError(f"{self.name}: IMU gap of {dt:.3f} s at t={sample.t:.6f} s (max_gap_s={self.config.max_gap_s})")
+            raise InputError(
+                f"{self.name}: IMU gap of {dt:.3f} s at t={sample.t:.6f} s (max_gap_s={self.config.max_gap_s})"
+            )
         if self._last_imu is None:
             gyro_mean, accel_mean = gyro, accel
         else:
@@ -291,7 +352,9 @@ class AghiliFilter:
         """All map landmarks (anchors first): ids (m,), world positions (m, 3), slots (m,)."""
         ids = np.array(self.anchor_ids[: len(self.anchor_positions)] + self.landmark_ids, dtype=int)
         positions = np.vstack([self.anchor_positions, self.rho])
-        slots = np.r_[np.full(len(self.anchor_positions), -1), np.arange(len(self.landmark_ids))].astype(int)
+        slots = np.r_[
+            np.full(len(self.anchor_positions), -1), np.arange(len(self.landmark_ids))
+        ].astype(int)
         return ids, positions, slots
 
     def _associate(self, scan: LandmarkScan, R: np.ndarray) -> np.ndarray:
@@ -309,7 +372,9 @@ class AghiliFilter:
                 elif landmark_id in known_ids:
                     result[j] = landmark_id
                 elif landmark_id in self.anchor_ids:
-                    result[j] = -1  # an anchor not yet placed (first-observation mode handled earlier)
+                    result[
+                        j
+                    ] = -1  # an anchor not yet placed (first-observation mode handled earlier)
                 else:
                     result[j] = -2
                 seen.add(landmark_id)
@@ -322,10 +387,20 @@ class AghiliFilter:
         predicted = predict(attitude, self.r, positions)
         H = sensitivity(attitude, predicted, slots, self.P.shape[0])
         predicted_cov = H @ self.P @ H.T
-        associate = associate_nearest_neighbour if self.config.association == "nearest" else associate_jcbb
-        outcome = associate(np.asarray(scan.points, float), R, predicted, predicted_cov, gate_probability=self.config.gate_probability)
+        associate = (
+            associate_nearest_neighbour if self.config.association == "nearest" else associate_jcbb
+        )
+        outcome = associate(
+            np.asarray(scan.points, float),
+            R,
+            predicted,
+            predicted_cov,
+            gate_probability=self.config.gate_probability,
+        )
         result = np.where(outcome.assignments >= 0, map_ids[np.maximum(outcome.assignments, 0)], -2)
-        result[outcome.ambiguous] = -1  # compatible with something but not chosen: neither update nor add
+        result[
+            outcome.ambiguous
+        ] = -1  # compatible with something but not chosen: neither update nor add
         return result
 
     def _place_anchors(self, scan: LandmarkScan) -> None:
@@ -357,16 +432,24 @@ class AghiliFilter:
         points = np.asarray(scan.points, dtype=float)
         k = int(points.shape[0]) if points.ndim == 2 else -1
         if points.ndim != 2 or (k > 0 and points.shape[1] != 3):
-            raise InputError(f"{self.name}: landmark scan at t={scan.t:.6f} s has points of shape {points.shape}, need (k, 3)")
+            raise InputError(
+                f"{self.name}: landmark scan at t={scan.t:.6f} s has points of shape {points.shape}, need (k, 3)"
+            )
         if not np.all(np.isfinite(points)):
-            raise InputError(f"{self.name}: non-finite landmark position in the scan at t={scan.t:.6f} s")
+            raise InputError(
+                f"{self.name}: non-finite landmark position in the scan at t={scan.t:.6f} s"
+            )
         covariances = np.asarray(scan.covariances, dtype=float)
         if k > 0 and (covariances.shape != (k, 3, 3) or not np.all(np.isfinite(covariances))):
-            raise InputError(f"{self.name}: landmark scan at t={scan.t:.6f} s has covariances of shape {covariances.shape}, need ({k}, 3, 3) finite")
+            raise InputError(
+                f"{self.name}: landmark scan at t={scan.t:.6f} s has covariances of shape {covariances.shape}, need ({k}, 3, 3) finite"
+            )
         dt = self._check_time(float(scan.t), "landmark scan")
         if self._last_imu is not None:
             # zero-order hold of the last IMU sample up to the scan time
-            self._propagate(dt, np.asarray(self._last_imu.gyro, float), np.asarray(self._last_imu.accel, float))
+            self._propagate(
+                dt, np.asarray(self._last_imu.gyro, float), np.asarray(self._last_imu.accel, float)
+            )
         else:
             self.t += dt
         self.counts["scans"] += 1
@@ -386,26 +469,40 @@ class AghiliFilter:
         R_after = self._measurement_noise(scan, k)
         created = {}
         for j in new_rows:
-            landmark_id = int(scan.ids[j]) if (scan.ids is not None and self.config.association == "auto") else self._new_id()
+            landmark_id = (
+                int(scan.ids[j])
+                if (scan.ids is not None and self.config.association == "auto")
+                else self._new_id()
+            )
             self._augment(points[j], R_after[j], landmark_id)
             created[j] = landmark_id
         for j in range(k):
             if j in created:
                 self.recorder.association(scan.t, j, created[j], True)
             else:
-                self.recorder.association(scan.t, j, int(targets[j]) if targets[j] >= 0 else -1, False)
+                self.recorder.association(
+                    scan.t, j, int(targets[j]) if targets[j] >= 0 else -1, False
+                )
         self.recorder.landmark_count(scan.t, len(self.landmark_ids))
         if self.noise_window is not None:
-            sigma = np.sqrt(np.diag(self.noise_window.estimate())) if self.noise_window.ready else np.sqrt(np.diag(R[0]))
+            sigma = (
+                np.sqrt(np.diag(self.noise_window.estimate()))
+                if self.noise_window.ready
+                else np.sqrt(np.diag(R[0]))
+            )
             self.recorder.extra("adaptive_R_sigma_m", np.r_[scan.t, sigma])
         self._stage_record()
         if scan.t - self._last_snapshot_t >= self.config.snapshot_interval_s:
             self.recorder.landmarks(self._landmark_map(scan.t))
             self._last_snapshot_t = scan.t
             if len(self.anchor_positions):
-                self.recorder.extra("gauge_yaw_variance_rad2", np.array([scan.t, self.gauge_yaw_variance()]))
+                self.recorder.extra(
+                    "gauge_yaw_variance_rad2", np.array([scan.t, self.gauge_yaw_variance()])
+                )
 
-    def _update(self, scan: LandmarkScan, points: np.ndarray, R: np.ndarray, targets: np.ndarray) -> None:
+    def _update(
+        self, scan: LandmarkScan, points: np.ndarray, R: np.ndarray, targets: np.ndarray
+    ) -> None:
         """Aghili eqs. (40a)-(40c) with the Joseph form, one stacked update per scan."""
         rows = np.flatnonzero(targets >= 0)
         if rows.size == 0:
@@ -433,7 +530,9 @@ class AghiliFilter:
         try:
             chol = np.linalg.cholesky(S)
         except np.linalg.LinAlgError:
-            self.recorder.event(scan.t, "update_skipped", reason="innovation covariance not positive definite")
+            self.recorder.event(
+                scan.t, "update_skipped", reason="innovation covariance not positive definite"
+            )
             return
         # K = P H^T S^-1 (eq. (40a)) via the Cholesky factor
         K = np.linalg.solve(chol.T, np.linalg.solve(chol, HP)).T
@@ -446,7 +545,9 @@ class AghiliFilter:
         self.P = 0.5 * (P_new + P_new.T)
         if float(dx[ATTITUDE] @ dx[ATTITUDE]) >= 1.0:
             self.counts["quaternion_resets"] += 1
-            self.recorder.event(scan.t, "large_attitude_correction", norm=float(np.linalg.norm(dx[ATTITUDE])))
+            self.recorder.event(
+                scan.t, "large_attitude_correction", norm=float(np.linalg.norm(dx[ATTITUDE]))
+            )
         self.q = quat.apply_error(dx[ATTITUDE], self.q)  # eq. (40c)
         self.r = self.r + dx[POSITION]
         self.v = self.v + dx[VELOCITY]
@@ -486,7 +587,9 @@ class AghiliFilter:
     def gauge_yaw_variance(self) -> float:
         """Variance [rad^2] along the rotation about gravity through the first anchor: the
         direction one anchor leaves unobservable (section 3), ``(u^T P^-1 u)^-1``."""
-        direction = gauge_rotation_direction(quat.rotation_matrix(self.q), self.r, self.v, self.rho, self.anchor_positions[0])
+        direction = gauge_rotation_direction(
+            quat.rotation_matrix(self.q), self.r, self.v, self.rho, self.anchor_positions[0]
+        )
         return variance_along(self.P, direction)
 
     # ------------------------------------------------------------------ export
@@ -571,7 +674,9 @@ class AghiliFilter:
         if self.counts["empty_scans"]:
             notes.append(f"{self.counts['empty_scans']} empty landmark scans (no update)")
         if self.counts["quaternion_resets"]:
-            notes.append(f"{self.counts['quaternion_resets']} attitude corrections with |dq_v| >= 1 (rescaled)")
+            notes.append(
+                f"{self.counts['quaternion_resets']} attitude corrections with |dq_v| >= 1 (rescaled)"
+            )
         return self.recorder.build(landmarks=final_map, notes=tuple(notes))
 
 

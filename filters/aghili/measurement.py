@@ -28,7 +28,9 @@ def predict(attitude: np.ndarray, position: np.ndarray, landmarks: np.ndarray) -
     return (np.asarray(landmarks, dtype=float) - position) @ attitude
 
 
-def sensitivity(attitude: np.ndarray, predicted: np.ndarray, state_slots: np.ndarray, state_dim: int) -> np.ndarray:
+def sensitivity(
+    attitude: np.ndarray, predicted: np.ndarray, state_slots: np.ndarray, state_dim: int
+) -> np.ndarray:
     """Aghili eq. (10): stacked ``H`` (3k, state_dim).
 
     Row block i: ``[2 [p_i x], -Abar^T, 0, 0, 0, ..., Abar^T (at landmark i's slot), ...]``;

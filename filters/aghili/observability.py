@@ -28,7 +28,9 @@ class ObservabilityReport:
     anchors_collinear: bool | None
 
 
-def segment_matrices(attitude, position, omega_bar, a_bar, anchors, landmarks) -> tuple[np.ndarray, np.ndarray]:
+def segment_matrices(
+    attitude, position, omega_bar, a_bar, anchors, landmarks
+) -> tuple[np.ndarray, np.ndarray]:
     """F (21a) and H (10) for one segment: anchors (r, 3) and estimated landmarks (n, 3), world."""
     world = np.vstack([anchors, landmarks])
     slots = np.r_[np.full(len(anchors), -1), np.arange(len(landmarks))]
@@ -48,11 +50,16 @@ def observability_matrix(F: np.ndarray, H: np.ndarray) -> np.ndarray:
 
 def pi_matrix(anchors_body: np.ndarray) -> np.ndarray:
     """Aghili eqs. (25), (26): ``Pi = [e1 x]^2 + [e2 x]^2`` from three anchors (body frame)."""
-    e = [(anchors_body[i] - anchors_body[2]) / np.linalg.norm(anchors_body[i] - anchors_body[2]) for i in (0, 1)]
+    e = [
+        (anchors_body[i] - anchors_body[2]) / np.linalg.norm(anchors_body[i] - anchors_body[2])
+        for i in (0, 1)
+    ]
     return skew(e[0]) @ skew(e[0]) + skew(e[1]) @ skew(e[1])
 
 
-def rank_report(matrix: np.ndarray, size: int, tolerance: float = 1e-9, anchors_body: np.ndarray | None = None) -> ObservabilityReport:
+def rank_report(
+    matrix: np.ndarray, size: int, tolerance: float = 1e-9, anchors_body: np.ndarray | None = None
+) -> ObservabilityReport:
     """Rank (SVD, relative tolerance) and the smallest singular values; eq. (27) test if 3+ anchors."""
     values = np.linalg.svd(matrix, compute_uv=False)
     rank = int(np.sum(values > tolerance * values[0]))
@@ -60,11 +67,15 @@ def rank_report(matrix: np.ndarray, size: int, tolerance: float = 1e-9, anchors_
     if anchors_body is not None and len(anchors_body) >= 3:
         pi_value = float(np.linalg.svd(pi_matrix(anchors_body[:3]), compute_uv=False)[-1])
         e1, e2 = anchors_body[0] - anchors_body[2], anchors_body[1] - anchors_body[2]
-        collinear = bool(np.linalg.norm(np.cross(e1, e2)) < 1e-9 * np.linalg.norm(e1) * np.linalg.norm(e2))  # eq. (27)
+        collinear = bool(
+            np.linalg.norm(np.cross(e1, e2)) < 1e-9 * np.linalg.norm(e1) * np.linalg.norm(e2)
+        )  # eq. (27)
     return ObservabilityReport(rank, size, np.sort(values)[:6], pi_value, collinear)
 
 
-def total_observability_matrix(segments: list[tuple[np.ndarray, np.ndarray]], durations: list[float], stripped: bool = False) -> np.ndarray:
+def total_observability_matrix(
+    segments: list[tuple[np.ndarray, np.ndarray]], durations: list[float], stripped: bool = False
+) -> np.ndarray:
     """Aghili eq. (30) (or the stripped eq. (32) with ``stripped=True``) for segments (F_j, H_j)."""
     rows, transition = [], np.eye(segments[0][0].shape[0])
     for j, (F, H) in enumerate(segments):
@@ -92,7 +103,9 @@ class TrajectoryObservability:
     stripped: ObservabilityReport | None
 
 
-def segment_inputs(times: np.ndarray, rotations: np.ndarray, positions: np.ndarray, index: int) -> tuple[np.ndarray, np.ndarray]:
+def segment_inputs(
+    times: np.ndarray, rotations: np.ndarray, positions: np.ndarray, index: int
+) -> tuple[np.ndarray, np.ndarray]:
     """The true mean IMU signals ``(omega_bar, a_bar)`` (body frame) of the segment starting at
     sample ``index``, by finite differences of the trajectory (gravity ``(0, 0, -9.81)``, so a
     resting accelerometer reads ``+9.81`` up, eq. (15)).
@@ -108,7 +121,10 @@ def segment_inputs(times: np.ndarray, rotations: np.ndarray, positions: np.ndarr
     accel = np.zeros(3)
     if index + 2 < len(times):
         later = times[index + 2] - times[index + 1]
-        accel = ((positions[index + 2] - positions[index + 1]) / later - (positions[index + 1] - positions[index]) / dt) / (0.5 * (dt + later))
+        accel = (
+            (positions[index + 2] - positions[index + 1]) / later
+            - (positions[index + 1] - positions[index]) / dt
+        ) / (0.5 * (dt + later))
     return omega, attitude.T @ (accel + np.array([0.0, 0.0, 9.81]))
 
 
@@ -143,11 +159,15 @@ def observability_along_trajectory(
     reports: list[TrajectoryObservability] = []
     for k, index in enumerate(indices):
         position = positions[index]
-        nearest = candidates[np.argsort(np.linalg.norm(candidates - position, axis=1))[:landmark_count]]
+        nearest = candidates[
+            np.argsort(np.linalg.norm(candidates - position, axis=1))[:landmark_count]
+        ]
         anchors_body = (anchors - position) @ rotations[index]
 
-        def segment_at(j: int) -> tuple[np.ndarray, np.ndarray]:
-            return segment_matrices(rotations[indices[j]], positions[indices[j]], *inputs[j], anchors, nearest)
+        def segment_at(j: int, nearest: np.ndarray = nearest) -> tuple[np.ndarray, np.ndarray]:
+            return segment_matrices(
+                rotations[indices[j]], positions[indices[j]], *inputs[j], anchors, nearest
+            )
 
         F, H = segment_at(k)
         size = F.shape[0]
@@ -155,15 +175,23 @@ def observability_along_trajectory(
         total = stripped = None
         if k + 1 >= window:
             chain = [segment_at(j) for j in range(k + 1 - window, k)] + [(F, H)]
-            durations = [float(times[indices[j + 1]] - times[indices[j]]) for j in range(k + 1 - window, k)]
+            durations = [
+                float(times[indices[j + 1]] - times[indices[j]]) for j in range(k + 1 - window, k)
+            ]
             total = rank_report(total_observability_matrix(chain, durations), size)
-            stripped = rank_report(total_observability_matrix(chain, durations, stripped=True), size)
+            stripped = rank_report(
+                total_observability_matrix(chain, durations, stripped=True), size
+            )
         reports.append(TrajectoryObservability(float(times[index]), segment, total, stripped))
     return reports
 
 
 def gauge_rotation_direction(
-    attitude: np.ndarray, position: np.ndarray, velocity: np.ndarray, landmarks: np.ndarray, pivot: np.ndarray
+    attitude: np.ndarray,
+    position: np.ndarray,
+    velocity: np.ndarray,
+    landmarks: np.ndarray,
+    pivot: np.ndarray,
 ) -> np.ndarray:
     """Error-state direction (15 + 3n,) of a rotation of everything about gravity through
     ``pivot`` (world [m]), per radian: the direction a single anchor leaves unobservable.

@@ -30,30 +30,44 @@ So we do not use eq. (37) at all: the closed form here is derived from (36) dire
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from math import factorial
 
 import numpy as np
 from scipy.linalg import expm
 
 from datasets.rotations import skew
-from filters.aghili.transition import ACCEL_BIAS, ATTITUDE, GYRO_BIAS, POSITION, VEHICLE_DIM, VELOCITY, lambda_matrices
+from filters.aghili.transition import (
+    ACCEL_BIAS,
+    ATTITUDE,
+    GYRO_BIAS,
+    POSITION,
+    VEHICLE_DIM,
+    VELOCITY,
+    lambda_matrices,
+)
 
 _TERMS = 24
 _CLOSED_FORM_LIMIT = 3.0
 """Above this |omega| tau [rad] the series needs more terms: fall back to Van Loan."""
 
 
-def noise_covariance(gyro_density: float, gyro_bias_walk: float, accel_density: float, accel_bias_walk: float) -> np.ndarray:
+def noise_covariance(
+    gyro_density: float, gyro_bias_walk: float, accel_density: float, accel_bias_walk: float
+) -> np.ndarray:
     """Aghili section 4.1: ``Sigma_eps = diag(sg^2 1, sbg^2 1, sa^2 1, sba^2 1)`` (12, 12).
 
     Densities are continuous-time (``NoiseSpec``): [rad/s/sqrt(Hz)], [rad/s^2/sqrt(Hz)],
     [m/s^2/sqrt(Hz)], [m/s^3/sqrt(Hz)], in the noise order ``[eps_g, eps_bg, eps_a, eps_ba]``.
     """
-    return np.diag(np.repeat([gyro_density**2, gyro_bias_walk**2, accel_density**2, accel_bias_walk**2], 3))
+    return np.diag(
+        np.repeat([gyro_density**2, gyro_bias_walk**2, accel_density**2, accel_bias_walk**2], 3)
+    )
 
 
-def process_noise_van_loan(F: np.ndarray, G: np.ndarray, sigma: np.ndarray, tau: float) -> np.ndarray:
+def process_noise_van_loan(
+    F: np.ndarray, G: np.ndarray, sigma: np.ndarray, tau: float
+) -> np.ndarray:
     """Aghili eq. (36) by Van Loan (1978): ``expm([[-F, G S G^T], [0, F^T]] tau)``.
 
     Returns Q (N, N) for F (N, N), G (N, p), sigma (p, p), step tau [s]; symmetrised.
@@ -69,7 +83,7 @@ def process_noise_van_loan(F: np.ndarray, G: np.ndarray, sigma: np.ndarray, tau:
     return 0.5 * (q + q.T)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _series_by_order(i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
     """Coefficients of ``lambda_product_integral`` grouped by total order ``n = k + l``.
 
@@ -79,7 +93,7 @@ def _series_by_order(i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
     real = np.zeros(2 * _TERMS)
     imag = np.zeros(2 * _TERMS)
     for k in range(_TERMS):
-        for l in range(_TERMS):
+        for l in range(_TERMS):  # noqa: E741 - the equation's index
             n = k + l
             weight = 1.0 / (factorial(k + i - 1) * factorial(l + j - 1) * (n + i + j - 1))
             phase = (l - k) % 4
@@ -90,13 +104,17 @@ def _series_by_order(i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
     return real, imag
 
 
-@lru_cache(maxsize=None)
-def _pair_tables(pairs: tuple[tuple[int, int], ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+@cache
+def _pair_tables(
+    pairs: tuple[tuple[int, int], ...],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Stacked ``_series_by_order`` tables (P, 2T), tau exponent offsets (P,), parallel factors (P,)."""
     real = np.array([_series_by_order(i, j)[0] for i, j in pairs])
     imag = np.array([_series_by_order(i, j)[1] for i, j in pairs])
     offsets = np.array([i + j - 1 for i, j in pairs], dtype=float)
-    parallel = np.array([1.0 / ((i + j - 1) * factorial(i - 1) * factorial(j - 1)) for i, j in pairs])
+    parallel = np.array(
+        [1.0 / ((i + j - 1) * factorial(i - 1) * factorial(j - 1)) for i, j in pairs]
+    )
     return real, imag, offsets, parallel
 
 
@@ -105,7 +123,9 @@ _EVEN_MASK = (_ORDERS % 2 == 0) & (_ORDERS >= 2)
 _ODD_MASK = _ORDERS % 2 == 1
 
 
-def _product_coefficients(pairs: tuple[tuple[int, int], ...], rate: float, tau: float) -> np.ndarray:
+def _product_coefficients(
+    pairs: tuple[tuple[int, int], ...], rate: float, tau: float
+) -> np.ndarray:
     """``(parallel, beta, gamma)`` of ``J_ij = parallel 1 + beta W + gamma W^2`` per pair, (P, 3)."""
     real, imag, offsets, parallel = _pair_tables(pairs)
     n = _ORDERS
@@ -157,7 +177,12 @@ def vehicle_process_noise(
         from filters.aghili.transition import error_dynamics
 
         F, G = error_dynamics(omega_bar, a_bar, attitude)
-        return process_noise_van_loan(F, G, noise_covariance(gyro_density, gyro_bias_walk, accel_density, accel_bias_walk), tau)
+        return process_noise_van_loan(
+            F,
+            G,
+            noise_covariance(gyro_density, gyro_bias_walk, accel_density, accel_bias_walk),
+            tau,
+        )
     if lambdas is None:
         lambdas = lambda_matrices(omega_bar, tau, 5)
     sg2, sbg2, sa2, sba2 = gyro_density**2, gyro_bias_walk**2, accel_density**2, accel_bias_walk**2
@@ -179,12 +204,20 @@ def vehicle_process_noise(
     q[ATTITUDE, VELOCITY] = -sg2 / 2.0 * j(1, 2) @ m.T - sbg2 / 2.0 * j(2, 3) @ m.T
     q[ATTITUDE, GYRO_BIAS] = sbg2 / 2.0 * lambdas[2]
     q[POSITION, POSITION] = (
-        sg2 * m @ j(3, 3) @ m.T + sbg2 * m @ j(4, 4) @ m.T + (sa2 * tau**3 / 3.0 + sba2 * tau**5 / 20.0) * eye
+        sg2 * m @ j(3, 3) @ m.T
+        + sbg2 * m @ j(4, 4) @ m.T
+        + (sa2 * tau**3 / 3.0 + sba2 * tau**5 / 20.0) * eye
     )
-    q[POSITION, VELOCITY] = sg2 * m @ j(3, 2) @ m.T + sbg2 * m @ j(4, 3) @ m.T + (sa2 * tau**2 / 2.0 + sba2 * tau**4 / 8.0) * eye
+    q[POSITION, VELOCITY] = (
+        sg2 * m @ j(3, 2) @ m.T
+        + sbg2 * m @ j(4, 3) @ m.T
+        + (sa2 * tau**2 / 2.0 + sba2 * tau**4 / 8.0) * eye
+    )
     q[POSITION, GYRO_BIAS] = -sbg2 * m @ lambdas[4]
     q[POSITION, ACCEL_BIAS] = sba2 * tau**3 / 6.0 * attitude
-    q[VELOCITY, VELOCITY] = sg2 * m @ j(2, 2) @ m.T + sbg2 * m @ j(3, 3) @ m.T + (sa2 * tau + sba2 * tau**3 / 3.0) * eye
+    q[VELOCITY, VELOCITY] = (
+        sg2 * m @ j(2, 2) @ m.T + sbg2 * m @ j(3, 3) @ m.T + (sa2 * tau + sba2 * tau**3 / 3.0) * eye
+    )
     q[VELOCITY, GYRO_BIAS] = -sbg2 * m @ lambdas[3]
     q[VELOCITY, ACCEL_BIAS] = sba2 * tau**2 / 2.0 * attitude
     q[GYRO_BIAS, GYRO_BIAS] = sbg2 * tau * eye
@@ -193,13 +226,20 @@ def vehicle_process_noise(
     return np.triu(q) + np.triu(q, 1).T
 
 
-def paper_printed_blocks(omega_bar: np.ndarray, tau: float, gyro_density: float, gyro_bias_walk: float, accel_density: float) -> dict[str, np.ndarray]:
+def paper_printed_blocks(
+    omega_bar: np.ndarray,
+    tau: float,
+    gyro_density: float,
+    gyro_bias_walk: float,
+    accel_density: float,
+) -> dict[str, np.ndarray]:
     """Three blocks of eq. (37) *as printed*, for the tests that document where it is right
     and where it is not: attitude (Q'_11), gyro-bias/attitude (Q'_41), position (Q'_22)."""
     w = skew(omega_bar)
     sg2, sbg2, sa2 = gyro_density**2, gyro_bias_walk**2, accel_density**2
     return {
-        "attitude": (sg2 / 4.0 * tau + sbg2 / 12.0 * tau**3) * np.eye(3) + sbg2 / 240.0 * tau**5 * (w @ w),
+        "attitude": (sg2 / 4.0 * tau + sbg2 / 12.0 * tau**3) * np.eye(3)
+        + sbg2 / 240.0 * tau**5 * (w @ w),
         "gyro_bias_attitude": sbg2 / 4.0 * tau**2 * np.eye(3) + sbg2 / 48.0 * tau**4 * (w @ w),
         "position": sa2 / 3.0 * tau**3 * np.eye(3),
     }

@@ -90,7 +90,9 @@ def paper_printed_exponential_matrix(omega: np.ndarray, duration_s: float) -> np
     half_angle = 0.5 * rate * duration_s
     omega_quat = np.array([omega[0], omega[1], omega[2], 0.0])
     scale = 2.0 / (rate * duration_s) * np.sin(half_angle) - 0.5 * np.cos(half_angle)
-    return (np.cos(half_angle) + np.sin(half_angle)) * np.eye(4) + scale * product_matrix(omega_quat)
+    return (np.cos(half_angle) + np.sin(half_angle)) * np.eye(4) + scale * product_matrix(
+        omega_quat
+    )
 
 
 def propagate(q: np.ndarray, omega: np.ndarray, duration_s: float) -> np.ndarray:

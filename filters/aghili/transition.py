@@ -40,7 +40,7 @@ L1..L3 as printed are right (``Lambda_1..3`` of eq. (35)).
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from math import factorial
 
 import numpy as np
@@ -60,7 +60,7 @@ _SERIES_LIMIT = 2.0
 _SERIES_TERMS = 20
 
 
-@lru_cache(maxsize=None)
+@cache
 def _inverse_factorials(order: int) -> np.ndarray:
     """``(-1)^k / (2k + order)!`` for k < _SERIES_TERMS."""
     return np.array([(-1.0) ** k / factorial(2 * k + order) for k in range(_SERIES_TERMS)])
@@ -91,7 +91,7 @@ def series_coefficients(x: float, count: int) -> np.ndarray:
     return np.array([series_coefficient(order, x) for order in range(1, count + 1)])
 
 
-@lru_cache(maxsize=None)
+@cache
 def _coefficient_table(count: int) -> np.ndarray:
     return np.array([_inverse_factorials(order) for order in range(1, count + 1)])
 
@@ -126,7 +126,9 @@ def lambda_matrix(order: int, omega: np.ndarray, tau: float) -> np.ndarray:
     )
 
 
-def error_dynamics(omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarray, landmark_count: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def error_dynamics(
+    omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarray, landmark_count: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
     """Aghili eqs. (21a), (21b): ``F`` (15+3n, 15+3n) and ``G`` (15+3n, 12).
 
     Args:
@@ -155,7 +157,11 @@ def error_dynamics(omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarra
 
 
 def vehicle_transition(
-    omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarray, tau: float, lambdas: list[np.ndarray] | None = None
+    omega_bar: np.ndarray,
+    a_bar: np.ndarray,
+    attitude: np.ndarray,
+    tau: float,
+    lambdas: list[np.ndarray] | None = None,
 ) -> np.ndarray:
     """Aghili eq. (35), corrected: ``Phi'(tau) = expm(F' tau)`` (15, 15) in closed form.
 
@@ -183,7 +189,9 @@ def vehicle_transition(
     return phi
 
 
-def paper_printed_vehicle_transition(omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarray, tau: float) -> np.ndarray:
+def paper_printed_vehicle_transition(
+    omega_bar: np.ndarray, a_bar: np.ndarray, attitude: np.ndarray, tau: float
+) -> np.ndarray:
     """Eq. (35) *as printed*, read as acting on [dq_v, dr, dr_dot, db_g] (12, 12).
 
     Kept only so that a test can show it disagrees with ``expm(F tau)``; never used.

@@ -14,41 +14,81 @@ class EkfSlamConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     motion_input: Literal["auto", "odometry", "gyro"] = Field(
-        "auto", description="motion model input: auto = odometry when the data has it, else the gyro (IMU gyro in 3-D)"
+        "auto",
+        description="motion model input: auto = odometry when the data has it, else the gyro (IMU gyro in 3-D)",
     )
     association: Literal["auto", "ids", "jcbb"] = Field(
         "auto", description="auto = the scan's ids when present, else JCBB (filters/association.py)"
     )
-    gate_probability: float = Field(0.99, gt=0, lt=1, description="chi-square gate probability of JCBB (individual and joint)")
+    gate_probability: float = Field(
+        0.99, gt=0, lt=1, description="chi-square gate probability of JCBB (individual and joint)"
+    )
     # Measured on sim:guerreiro-loop (ids withheld, seed 0): at the association module's
     # default cap (DEFAULT_MAX_NODES) the revisit scans hit the cap and the run takes ~25 min;
     # at 2000 it takes ~1.5 min with the same association precision (0.859 vs 0.858).
-    max_nodes: int = Field(2000, ge=1, le=DEFAULT_MAX_NODES * 10, description="cap on JCBB interpretation-tree nodes per scan")
+    max_nodes: int = Field(
+        2000,
+        ge=1,
+        le=DEFAULT_MAX_NODES * 10,
+        description="cap on JCBB interpretation-tree nodes per scan",
+    )
     new_landmark_probability: float = Field(
-        0.999, gt=0, lt=1, description="JCBB: an unassigned sighting starts a landmark only when it is outside this chi-square gate of every landmark (between the gates it is discarded)"
+        0.999,
+        gt=0,
+        lt=1,
+        description="JCBB: an unassigned sighting starts a landmark only when it is outside this chi-square gate of every landmark (between the gates it is discarded)",
     )
     id_gate_probability: float | None = Field(
-        0.9999, gt=0, lt=1, description="with ids: reject a sighting whose NIS exceeds this chi-square quantile (None: never)"
+        0.9999,
+        gt=0,
+        lt=1,
+        description="with ids: reject a sighting whose NIS exceeds this chi-square quantile (None: never)",
     )
     acceleration_density: float = Field(
-        0.3, ge=0, description="gyro-driven model: white acceleration density driving the velocity [m/s^2/sqrt(Hz)]"
+        0.3,
+        ge=0,
+        description="gyro-driven model: white acceleration density driving the velocity [m/s^2/sqrt(Hz)]",
     )
     rotate_velocity_with_gyro: bool = Field(
-        True, description="gyro-driven model: world velocity turns with the body (constant body-frame velocity); false: constant world velocity"
+        True,
+        description="gyro-driven model: world velocity turns with the body (constant body-frame velocity); false: constant world velocity",
     )
     gyro_interval_rate: Literal["average", "latest"] = Field(
-        "average", description="rate over a gyro interval: mean of its two samples (instantaneous samples, the simulator's convention) or the later sample (interval averages)"
+        "average",
+        description="rate over a gyro interval: mean of its two samples (instantaneous samples, the simulator's convention) or the later sample (interval averages)",
     )
     estimate_gyro_bias: bool = Field(True, description="gyro-driven model: gyro bias in the state")
-    gyro_noise_density: float | None = Field(None, ge=0, description="[rad/s/sqrt(Hz)]; None: the dataset's NoiseSpec (else 1e-3)")
-    gyro_bias_walk: float | None = Field(None, ge=0, description="[rad/s^2/sqrt(Hz)]; None: the dataset's NoiseSpec (else 1e-5)")
-    gyro_bias_sigma_rad_s: float | None = Field(None, ge=0, description="initial bias std; None: the dataset's NoiseSpec (else 0.01)")
-    odometry_noise_scale: float = Field(1.0, gt=0, description="multiplies the odometry covariance of the data")
-    measurement_noise_scale: float = Field(1.0, gt=0, description="multiplies the landmark covariances of the data")
-    max_gap_s: float = Field(1.0, gt=0, description="a motion-input gap longer than this is logged (event motion_gap) and inflates the pose covariance")
-    gap_speed_m_s: float = Field(0.5, ge=0, description="position std added per second of a motion gap [m/s]")
-    gap_rate_rad_s: float = Field(0.2, ge=0, description="heading std added per second of a motion gap [rad/s]")
-    prune_single_sightings_after_s: float | None = Field(
-        None, gt=0, description="delete a landmark seen only once when this long has passed (None: keep every landmark)"
+    gyro_noise_density: float | None = Field(
+        None, ge=0, description="[rad/s/sqrt(Hz)]; None: the dataset's NoiseSpec (else 1e-3)"
     )
-    landmark_snapshot_every_s: float = Field(1.0, ge=0, description="interval of the recorded map snapshots [s] (0: every scan)")
+    gyro_bias_walk: float | None = Field(
+        None, ge=0, description="[rad/s^2/sqrt(Hz)]; None: the dataset's NoiseSpec (else 1e-5)"
+    )
+    gyro_bias_sigma_rad_s: float | None = Field(
+        None, ge=0, description="initial bias std; None: the dataset's NoiseSpec (else 0.01)"
+    )
+    odometry_noise_scale: float = Field(
+        1.0, gt=0, description="multiplies the odometry covariance of the data"
+    )
+    measurement_noise_scale: float = Field(
+        1.0, gt=0, description="multiplies the landmark covariances of the data"
+    )
+    max_gap_s: float = Field(
+        1.0,
+        gt=0,
+        description="a motion-input gap longer than this is logged (event motion_gap) and inflates the pose covariance",
+    )
+    gap_speed_m_s: float = Field(
+        0.5, ge=0, description="position std added per second of a motion gap [m/s]"
+    )
+    gap_rate_rad_s: float = Field(
+        0.2, ge=0, description="heading std added per second of a motion gap [rad/s]"
+    )
+    prune_single_sightings_after_s: float | None = Field(
+        None,
+        gt=0,
+        description="delete a landmark seen only once when this long has passed (None: keep every landmark)",
+    )
+    landmark_snapshot_every_s: float = Field(
+        1.0, ge=0, description="interval of the recorded map snapshots [s] (0: every scan)"
+    )

@@ -69,12 +69,16 @@ class EkfSlam:
 
     def __init__(self, config: EkfSlamConfig, sequence: Sequence) -> None:
         if sequence.initial_state is None:
-            raise InputError(f"{sequence.name}: ekf-slam needs an initial state (the frame-defining prior), the dataset gives none")
+            raise InputError(
+                f"{sequence.name}: ekf-slam needs an initial state (the frame-defining prior), the dataset gives none"
+            )
         self.config = config
         self.dimension = d = sequence.dimension
         self.input = self._choose_input(config, sequence)
         gyro_model = self.input is not Sensor.ODOMETRY
-        self.layout = VehicleLayout(d, has_velocity=gyro_model, has_gyro_bias=gyro_model and config.estimate_gyro_bias)
+        self.layout = VehicleLayout(
+            d, has_velocity=gyro_model, has_gyro_bias=gyro_model and config.estimate_gyro_bias
+        )
         noise = sequence.noise
         self.gyro_noise = GyroNoise(
             gyro_density=_first(config.gyro_noise_density, noise.gyro_noise_density, 1e-3),
@@ -95,7 +99,9 @@ class EkfSlam:
         if self.layout.has_velocity:
             variances += [start.velocity_sigma_m_s**2] * d
         if self.layout.has_gyro_bias:
-            variances += [_first(config.gyro_bias_sigma_rad_s, noise.gyro_bias_sigma_rad_s, 0.01) ** 2] * rotation_size
+            variances += [
+                _first(config.gyro_bias_sigma_rad_s, noise.gyro_bias_sigma_rad_s, 0.01) ** 2
+            ] * rotation_size
         self.covariance = np.diag(variances)
         self.landmarks = np.zeros((0, d))
         self.map_ids: list[int] = []
@@ -143,7 +149,9 @@ class EkfSlam:
         if not np.isfinite(measurement.t):
             raise InputError(f"non-finite time stamp after t={self.t:.6f} s")
         if measurement.t < self.t - 1e-9:
-            raise InputError(f"time goes backwards at t={measurement.t:.6f} s (previous {self.t:.6f} s)")
+            raise InputError(
+                f"time goes backwards at t={measurement.t:.6f} s (previous {self.t:.6f} s)"
+            )
         if measurement.t > self.t and self.pending_record:
             self._record()
         if isinstance(measurement, LandmarkScan):
@@ -159,7 +167,10 @@ class EkfSlam:
         if isinstance(measurement, Odometry):
             increment, increment_cov = _odometry_increment(measurement, dt)
             new, transition, process = predict_odometry_2d(
-                self.vehicle, self.layout, increment, increment_cov * self.config.odometry_noise_scale
+                self.vehicle,
+                self.layout,
+                increment,
+                increment_cov * self.config.odometry_noise_scale,
             )
         else:
             if isinstance(measurement, ImuSample):
@@ -167,21 +178,34 @@ class EkfSlam:
             elif isinstance(measurement, GyroSample):
                 rate = np.asarray(measurement.rate, float).ravel()
             else:
-                raise InputError(f"ekf-slam cannot use a {type(measurement).__name__} as motion input (t={measurement.t:.6f} s)")
+                raise InputError(
+                    f"ekf-slam cannot use a {type(measurement).__name__} as motion input (t={measurement.t:.6f} s)"
+                )
             if rate.shape != (self.layout.rotation_size,) or not np.all(np.isfinite(rate)):
-                raise InputError(f"gyro rate at t={measurement.t:.6f} s must be {self.layout.rotation_size} finite values, got {rate}")
+                raise InputError(
+                    f"gyro rate at t={measurement.t:.6f} s must be {self.layout.rotation_size} finite values, got {rate}"
+                )
             interval_rate = rate
             if self.config.gyro_interval_rate == "average" and self.last_rate is not None:
                 interval_rate = 0.5 * (self.last_rate + rate)  # trapezoid of instantaneous samples
             self.last_rate = rate
             new, transition, process = predict_gyro_cv(
-                self.vehicle, self.layout, interval_rate, max(dt, 0.0), self.gyro_noise, self.config.rotate_velocity_with_gyro
+                self.vehicle,
+                self.layout,
+                interval_rate,
+                max(dt, 0.0),
+                self.gyro_noise,
+                self.config.rotate_velocity_with_gyro,
             )
         if dt > self.config.max_gap_s:
             # The input says nothing reliable about an unobserved stretch: widen pose uncertainty.
             process = process.copy()
-            process[self.layout.position, self.layout.position] += np.eye(self.dimension) * (self.config.gap_speed_m_s * dt) ** 2
-            process[self.layout.rotation, self.layout.rotation] += np.eye(self.layout.rotation_size) * (self.config.gap_rate_rad_s * dt) ** 2
+            process[self.layout.position, self.layout.position] += (
+                np.eye(self.dimension) * (self.config.gap_speed_m_s * dt) ** 2
+            )
+            process[self.layout.rotation, self.layout.rotation] += (
+                np.eye(self.layout.rotation_size) * (self.config.gap_rate_rad_s * dt) ** 2
+            )
         self._propagate(new, transition, process)
         self.motion_t = float(measurement.t)
         self.t = max(self.t, float(measurement.t))
@@ -202,7 +226,9 @@ class EkfSlam:
     def _scan(self, scan: LandmarkScan) -> None:
         self.t = max(self.t, float(scan.t))
         if scan.points.ndim != 2 or scan.points.shape[1] != self.dimension:
-            raise InputError(f"landmark scan at t={scan.t:.6f} s has points of shape {scan.points.shape}, expected (k, {self.dimension})")
+            raise InputError(
+                f"landmark scan at t={scan.t:.6f} s has points of shape {scan.points.shape}, expected (k, {self.dimension})"
+            )
         if not (np.all(np.isfinite(scan.points)) and np.all(np.isfinite(scan.covariances))):
             raise InputError(f"landmark scan at t={scan.t:.6f} s contains NaN or inf")
         points = np.asarray(scan.points, float)
@@ -242,7 +268,9 @@ class EkfSlam:
     def _association_mode(self, scan: LandmarkScan) -> str:
         if self.config.association == "ids":
             if scan.ids is None:
-                raise InputError(f"association=ids but the landmark scan at t={scan.t:.6f} s has no ids (use association=jcbb)")
+                raise InputError(
+                    f"association=ids but the landmark scan at t={scan.t:.6f} s has no ids (use association=jcbb)"
+                )
             return "ids"
         if self.config.association == "jcbb":
             return "jcbb"
@@ -251,17 +279,23 @@ class EkfSlam:
     def _predicted_blocks(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Predicted observations (m, d) and the stacked Jacobian H (m*d, n) of map landmarks."""
         d, v, n = self.dimension, self.vehicle_size, self.covariance.shape[0]
-        predicted, vehicle_jac, landmark_jac = predict_observations(self.vehicle, self.layout, self.landmarks[indices])
+        predicted, vehicle_jac, landmark_jac = predict_observations(
+            self.vehicle, self.layout, self.landmarks[indices]
+        )
         H = np.zeros((len(indices) * d, n))
         for row, index in enumerate(indices):
             H[row * d : row * d + d, :v] = vehicle_jac[row]
             H[row * d : row * d + d, self.layout.landmark(int(index))] = landmark_jac
         return predicted, H
 
-    def _individual_distances(self, points: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _individual_distances(
+        self, points: np.ndarray, noise: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-landmark predictions, their marginal covariances (m, d, d), and D^2 (k, m)."""
         m, d, v = len(self.map_ids), self.dimension, self.vehicle_size
-        predicted, vehicle_jac, landmark_jac = predict_observations(self.vehicle, self.layout, self.landmarks)
+        predicted, vehicle_jac, landmark_jac = predict_observations(
+            self.vehicle, self.layout, self.landmarks
+        )
         P = self.covariance
         starts = v + np.arange(m) * d
         cross = np.stack([P[:v, s : s + d] for s in starts]) if m else np.zeros((0, v, d))
@@ -272,10 +306,14 @@ class EkfSlam:
         blocks = blocks + mixed + np.swapaxes(mixed, 1, 2) + landmark_jac @ own @ landmark_jac.T
         innovation = points[:, None, :] - predicted[None, :, :]
         total = noise[:, None, :, :] + blocks[None, :, :, :]
-        distances = np.einsum("kmi,kmi->km", innovation, np.linalg.solve(total, innovation[..., None])[..., 0])
+        distances = np.einsum(
+            "kmi,kmi->km", innovation, np.linalg.solve(total, innovation[..., None])[..., 0]
+        )
         return predicted, blocks, distances
 
-    def _associate_by_ids(self, scan: LandmarkScan, points: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    def _associate_by_ids(
+        self, scan: LandmarkScan, points: np.ndarray, noise: np.ndarray
+    ) -> tuple[np.ndarray, list[int]]:
         ids = np.asarray(scan.ids, dtype=int)
         assignments = np.full(len(points), -1, dtype=int)
         new: list[int] = []
@@ -297,7 +335,9 @@ class EkfSlam:
                     assignments[j] = -1
         return assignments, new
 
-    def _associate_jcbb(self, t: float, points: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    def _associate_jcbb(
+        self, t: float, points: np.ndarray, noise: np.ndarray
+    ) -> tuple[np.ndarray, list[int]]:
         k, d = points.shape
         assignments = np.full(k, -1, dtype=int)
         if not self.map_ids:
@@ -310,16 +350,26 @@ class EkfSlam:
         predicted, H = self._predicted_blocks(subset)
         joint = H @ self.covariance @ H.T
         result = associate_jcbb(
-            points, noise, predicted, 0.5 * (joint + joint.T),
-            gate_probability=self.config.gate_probability, max_nodes=self.config.max_nodes,
+            points,
+            noise,
+            predicted,
+            0.5 * (joint + joint.T),
+            gate_probability=self.config.gate_probability,
+            max_nodes=self.config.max_nodes,
         )
         self.recorder.extra("jcbb_nodes", [t, result.nodes, float(result.truncated)])
         paired = result.assignments >= 0
         assignments[paired] = subset[result.assignments[paired]]
         # A sighting just outside the association gate is more likely a poorly predicted old
         # landmark than a new one: only sightings far from every landmark start one.
-        far = distances.min(axis=1) >= chi2_gate(d, max(self.config.new_landmark_probability, self.config.gate_probability))
-        new = [j for j in range(k) if result.assignments[j] < 0 and result.candidate_counts[j] == 0 and far[j]]
+        far = distances.min(axis=1) >= chi2_gate(
+            d, max(self.config.new_landmark_probability, self.config.gate_probability)
+        )
+        new = [
+            j
+            for j in range(k)
+            if result.assignments[j] < 0 and result.candidate_counts[j] == 0 and far[j]
+        ]
         return assignments, new
 
     def _update(self, t: float, points: np.ndarray, noise: np.ndarray, indices: np.ndarray) -> None:
@@ -354,11 +404,17 @@ class EkfSlam:
         self.vehicle = VehicleMean(
             position=vehicle.position + correction[layout.position],
             rotation=rotation,
-            velocity=None if layout.velocity is None else vehicle.velocity + correction[layout.velocity],
-            gyro_bias=None if layout.gyro_bias is None else vehicle.gyro_bias + correction[layout.gyro_bias],
+            velocity=None
+            if layout.velocity is None
+            else vehicle.velocity + correction[layout.velocity],
+            gyro_bias=None
+            if layout.gyro_bias is None
+            else vehicle.gyro_bias + correction[layout.gyro_bias],
         )
         if len(self.map_ids):
-            self.landmarks = self.landmarks + correction[self.vehicle_size :].reshape(-1, self.dimension)
+            self.landmarks = self.landmarks + correction[self.vehicle_size :].reshape(
+                -1, self.dimension
+            )
 
     def _add_landmark(self, t: float, point: np.ndarray, noise: np.ndarray) -> int:
         """Augment the state with a new landmark and its cross-covariances; returns its map index."""
@@ -385,12 +441,18 @@ class EkfSlam:
         horizon = self.config.prune_single_sightings_after_s
         if horizon is None:
             return
-        drop = [i for i in range(len(self.map_ids)) if self.sightings[i] == 1 and t - self.created_t[i] > horizon]
+        drop = [
+            i
+            for i in range(len(self.map_ids))
+            if self.sightings[i] == 1 and t - self.created_t[i] > horizon
+        ]
         if not drop:
             return
         keep = [i for i in range(len(self.map_ids)) if i not in set(drop)]
         v, d = self.vehicle_size, self.dimension
-        rows = np.concatenate([np.arange(v)] + [np.arange(v + i * d, v + i * d + d) for i in keep]).astype(int)
+        rows = np.concatenate(
+            [np.arange(v)] + [np.arange(v + i * d, v + i * d + d) for i in keep]
+        ).astype(int)
         self.covariance = self.covariance[np.ix_(rows, rows)]
         self.landmarks = self.landmarks[keep]
         removed = [self.map_ids[i] for i in drop]
@@ -398,13 +460,24 @@ class EkfSlam:
         self.map_ids = [self.map_ids[i] for i in keep]
         self.sightings = [self.sightings[i] for i in keep]
         self.created_t = [self.created_t[i] for i in keep]
-        self.source_index = {key: remap[index] for key, index in self.source_index.items() if index in remap}
+        self.source_index = {
+            key: remap[index] for key, index in self.source_index.items() if index in remap
+        }
         self.recorder.event(t, "landmarks_pruned", map_ids=removed, reason="seen once")
 
     # ------------------------------------------------------------------ output
     def _map_snapshot(self, t: float | None) -> LandmarkMap:
         v, d, m = self.vehicle_size, self.dimension, len(self.map_ids)
-        covariances = np.stack([self.covariance[v + i * d : v + i * d + d, v + i * d : v + i * d + d] for i in range(m)]) if m else np.zeros((0, d, d))
+        covariances = (
+            np.stack(
+                [
+                    self.covariance[v + i * d : v + i * d + d, v + i * d : v + i * d + d]
+                    for i in range(m)
+                ]
+            )
+            if m
+            else np.zeros((0, d, d))
+        )
         return LandmarkMap(
             ids=np.array(self.map_ids, dtype=int),
             positions=self.landmarks.copy(),
@@ -418,12 +491,28 @@ class EkfSlam:
         rotation_matrix = self.vehicle.rotation_matrix()
         pose_size = layout.rotation.stop  # position then rotation lead the vehicle block
         pose_cov = pose_covariance_to_interface(rotation_matrix, P[:pose_size, :pose_size])
-        rotation = float(self.vehicle.rotation) if self.dimension == 2 else quat_wxyz_from_matrix(rotation_matrix)
+        rotation = (
+            float(self.vehicle.rotation)
+            if self.dimension == 2
+            else quat_wxyz_from_matrix(rotation_matrix)
+        )
         self.recorder.pose(self.t, self.vehicle.position, rotation, pose_cov)
         if layout.velocity is not None:
-            self.recorder.block(BlockName.VELOCITY, self.t, self.vehicle.velocity, P[layout.velocity, layout.velocity], Frame.WORLD)
+            self.recorder.block(
+                BlockName.VELOCITY,
+                self.t,
+                self.vehicle.velocity,
+                P[layout.velocity, layout.velocity],
+                Frame.WORLD,
+            )
         if layout.gyro_bias is not None:
-            self.recorder.block(BlockName.GYRO_BIAS, self.t, self.vehicle.gyro_bias, P[layout.gyro_bias, layout.gyro_bias], Frame.BODY)
+            self.recorder.block(
+                BlockName.GYRO_BIAS,
+                self.t,
+                self.vehicle.gyro_bias,
+                P[layout.gyro_bias, layout.gyro_bias],
+                Frame.BODY,
+            )
         self.pending_record = False
 
     def estimate(self) -> Estimate:
@@ -465,7 +554,9 @@ def _odometry_increment(odometry: Odometry, dt: float) -> tuple[np.ndarray, np.n
     if odometry.relative_pose is not None:
         increment = np.asarray(odometry.relative_pose, float)
         if increment.shape != (3,):
-            raise InputError(f"odometry at t={odometry.t:.6f} s: ekf-slam takes planar increments (3,), got {increment.shape}")
+            raise InputError(
+                f"odometry at t={odometry.t:.6f} s: ekf-slam takes planar increments (3,), got {increment.shape}"
+            )
     elif odometry.velocity is not None:
         speed, rate = np.asarray(odometry.velocity, float)
         step = max(dt, 0.0)

@@ -53,8 +53,11 @@ class VehicleLayout:
 
     @property
     def size(self) -> int:
-        return self.dimension + self.rotation_size + (self.dimension if self.has_velocity else 0) + (
-            self.rotation_size if self.has_gyro_bias else 0
+        return (
+            self.dimension
+            + self.rotation_size
+            + (self.dimension if self.has_velocity else 0)
+            + (self.rotation_size if self.has_gyro_bias else 0)
         )
 
     def landmark(self, index: int) -> slice:

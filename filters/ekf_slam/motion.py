@@ -51,7 +51,9 @@ class VehicleMean:
 
     def rotation_matrix(self) -> np.ndarray:
         """Body-to-world rotation (d, d)."""
-        return rot2(float(self.rotation)) if np.ndim(self.rotation) == 0 else np.asarray(self.rotation)
+        return (
+            rot2(float(self.rotation)) if np.ndim(self.rotation) == 0 else np.asarray(self.rotation)
+        )
 
 
 def predict_odometry_2d(
@@ -71,7 +73,12 @@ def predict_odometry_2d(
     input_jacobian[layout.position, 0:2] = rotation
     input_jacobian[layout.rotation, 2] = 1.0
     process = input_jacobian @ np.asarray(increment_cov, float) @ input_jacobian.T
-    new = VehicleMean(mean.position + rotation @ u_xy, float(wrap_angle(heading + u_theta)), mean.velocity, mean.gyro_bias)
+    new = VehicleMean(
+        mean.position + rotation @ u_xy,
+        float(wrap_angle(heading + u_theta)),
+        mean.velocity,
+        mean.gyro_bias,
+    )
     return new, transition, process
 
 
@@ -91,7 +98,12 @@ class GyroNoise:
 
 
 def predict_gyro_cv(
-    mean: VehicleMean, layout: VehicleLayout, rate: np.ndarray, dt: float, noise: GyroNoise, rotate_velocity: bool = True
+    mean: VehicleMean,
+    layout: VehicleLayout,
+    rate: np.ndarray,
+    dt: float,
+    noise: GyroNoise,
+    rotate_velocity: bool = True,
 ) -> tuple[VehicleMean, np.ndarray, np.ndarray]:
     """Gyro-driven constant-velocity prediction over ``dt`` [s] with measured rate (1,)/(3,).
 
@@ -113,7 +125,9 @@ def predict_gyro_cv(
         rate_jacobian[layout.rotation, 0] = dt
         if rotate_velocity and layout.velocity is not None:
             rate_jacobian[layout.velocity, 0] = dt * PLANAR_J @ new_velocity
-        new_rotation: float | np.ndarray = float(wrap_angle(float(mean.rotation) + corrected[0] * dt))
+        new_rotation: float | np.ndarray = float(
+            wrap_angle(float(mean.rotation) + corrected[0] * dt)
+        )
     else:
         rotation = np.asarray(mean.rotation)
         delta = so3_exp(corrected * dt)
@@ -123,18 +137,26 @@ def predict_gyro_cv(
         # left world-frame rotation error: dphi' = dphi - R' dt (db + n_g) (first order in dt)
         rate_jacobian[layout.rotation, :] = new_matrix * dt
         if layout.velocity is not None and rotate_velocity:
-            transition[layout.velocity, layout.rotation] = -skew(new_velocity) + turn @ skew(velocity)
+            transition[layout.velocity, layout.rotation] = -skew(new_velocity) + turn @ skew(
+                velocity
+            )
             rate_jacobian[layout.velocity, :] = -new_matrix @ skew(rotation.T @ velocity) * dt
         new_rotation = new_matrix
     if layout.velocity is not None:
         transition[layout.velocity, layout.velocity] = turn
         # p' = p + (v + v') dt / 2: the position inherits half of every velocity sensitivity
         transition[layout.position, layout.velocity] = 0.5 * dt * (np.eye(d) + turn)
-        transition[layout.position, layout.rotation] = 0.5 * dt * transition[layout.velocity, layout.rotation]
+        transition[layout.position, layout.rotation] = (
+            0.5 * dt * transition[layout.velocity, layout.rotation]
+        )
         rate_jacobian[layout.position, :] = 0.5 * dt * rate_jacobian[layout.velocity, :]
     if layout.gyro_bias is not None:
         transition[:, layout.gyro_bias] += -rate_jacobian
-    process = rate_jacobian @ rate_jacobian.T * (noise.gyro_density**2 / max(dt, 1e-12)) if dt > 0 else np.zeros_like(transition)
+    process = (
+        rate_jacobian @ rate_jacobian.T * (noise.gyro_density**2 / max(dt, 1e-12))
+        if dt > 0
+        else np.zeros_like(transition)
+    )
     if layout.velocity is not None and dt > 0:
         q = noise.acceleration_density**2
         process[layout.position, layout.position] += np.eye(d) * q * dt**3 / 3.0
@@ -142,7 +164,9 @@ def predict_gyro_cv(
         process[layout.velocity, layout.position] += np.eye(d) * q * dt**2 / 2.0
         process[layout.velocity, layout.velocity] += np.eye(d) * q * dt
     if layout.gyro_bias is not None:
-        process[layout.gyro_bias, layout.gyro_bias] += np.eye(layout.rotation_size) * noise.bias_walk**2 * dt
+        process[layout.gyro_bias, layout.gyro_bias] += (
+            np.eye(layout.rotation_size) * noise.bias_walk**2 * dt
+        )
     new = VehicleMean(
         position=mean.position + 0.5 * (velocity + new_velocity) * dt,
         rotation=new_rotation,

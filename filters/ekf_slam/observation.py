@@ -20,7 +20,9 @@ from filters.ekf_slam.layout import VehicleLayout
 from filters.ekf_slam.motion import PLANAR_J, VehicleMean
 
 
-def predict_observations(mean: VehicleMean, layout: VehicleLayout, landmarks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def predict_observations(
+    mean: VehicleMean, layout: VehicleLayout, landmarks: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Predicted body-frame observations of world landmarks (m, d).
 
     Returns:
@@ -35,11 +37,15 @@ def predict_observations(mean: VehicleMean, layout: VehicleLayout, landmarks: np
     if d == 2:
         vehicle[:, :, layout.rotation] = (-(predicted @ PLANAR_J.T))[:, :, None]
     else:
-        vehicle[:, :, layout.rotation] = np.einsum("ij,mjk->mik", rotation.T, np.array([skew(r) for r in relative]).reshape(m, 3, 3))
+        vehicle[:, :, layout.rotation] = np.einsum(
+            "ij,mjk->mik", rotation.T, np.array([skew(r) for r in relative]).reshape(m, 3, 3)
+        )
     return predicted, vehicle, rotation.T
 
 
-def initialise_landmark(mean: VehicleMean, layout: VehicleLayout, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def initialise_landmark(
+    mean: VehicleMean, layout: VehicleLayout, point: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World position of a body-frame point and its Jacobians.
 
     Returns:

@@ -61,7 +61,12 @@ def bias_coupling(points: np.ndarray) -> np.ndarray:
     zero = np.zeros(count)
     # -S(q)
     return -np.stack(
-        [np.stack([zero, -z, y], axis=1), np.stack([z, zero, -x], axis=1), np.stack([-y, x, zero], axis=1)], axis=1
+        [
+            np.stack([zero, -z, y], axis=1),
+            np.stack([z, zero, -x], axis=1),
+            np.stack([-y, x, zero], axis=1),
+        ],
+        axis=1,
     )
 
 
@@ -99,7 +104,11 @@ def rotation_flow(generator: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndar
     """
     d = generator.shape[0]
     squared = generator @ generator
-    rate = np.sqrt(max(-0.5 * float(np.trace(squared)), 0.0)) if d == 3 else abs(float(generator[1, 0]))
+    rate = (
+        np.sqrt(max(-0.5 * float(np.trace(squared)), 0.0))
+        if d == 3
+        else abs(float(generator[1, 0]))
+    )
     angle = rate * dt
     if angle < 1e-4:
         a = dt * (1.0 - angle**2 / 6.0)  # sin(w t)/w
@@ -196,8 +205,13 @@ def propagate(
         exp_own = np.where(visible[:, None, None], flow_visible[0][None], flow_hidden[0][None])
         integral = np.where(visible[:, None, None], flow_visible[1][None], flow_hidden[1][None])
         # held inputs: visible f' = E f + Gamma (M(y) b - v); non-visible f' = E f - Gamma v
-        forcing = np.where(visible[:, None], np.einsum("fdr,r->fd", m, b), 0.0) - position_sign * v[None, :]
-        x_next[nv:] = (np.einsum("fij,fj->fi", exp_own, features) + np.einsum("fij,fj->fi", integral, forcing)).ravel()
+        forcing = (
+            np.where(visible[:, None], np.einsum("fdr,r->fd", m, b), 0.0)
+            - position_sign * v[None, :]
+        )
+        x_next[nv:] = (
+            np.einsum("fij,fj->fi", exp_own, features) + np.einsum("fij,fj->fi", integral, forcing)
+        ).ravel()
         phi_vehicle = np.matmul(integral, a_vehicle)
         phi_own = exp_own
     else:
@@ -208,7 +222,9 @@ def propagate(
         out = matrix.copy()
         if count:
             feature_rows = matrix[nv:].reshape(count, d, -1)
-            out[nv:] = phi_vehicle.reshape(count * d, nv) @ matrix[:nv] + np.matmul(phi_own, feature_rows).reshape(count * d, -1)
+            out[nv:] = phi_vehicle.reshape(count * d, nv) @ matrix[:nv] + np.matmul(
+                phi_own, feature_rows
+            ).reshape(count * d, -1)
         return out
 
     predicted = apply_phi(apply_phi(covariance).T)
@@ -219,7 +235,9 @@ def propagate(
     return x_next, predicted
 
 
-def process_covariance(features: np.ndarray, is_position: np.ndarray, noise: ProcessNoise, dt: float, dimension: int) -> np.ndarray:
+def process_covariance(
+    features: np.ndarray, is_position: np.ndarray, noise: ProcessNoise, dt: float, dimension: int
+) -> np.ndarray:
     """Disturbance covariance ``Xi_F`` for one step of length ``dt`` (paper section V, plus gyro noise).
 
     ``Ts diag(sigma_v^2 I_d, sigma_b^2 I_r, sigma_p^2 I_d per position, sigma_dir^2 I_d per
@@ -234,7 +252,12 @@ def process_covariance(features: np.ndarray, is_position: np.ndarray, noise: Pro
 
 
 def add_process_covariance(
-    covariance: np.ndarray, features: np.ndarray, is_position: np.ndarray, noise: ProcessNoise, dt: float, dimension: int
+    covariance: np.ndarray,
+    features: np.ndarray,
+    is_position: np.ndarray,
+    noise: ProcessNoise,
+    dt: float,
+    dimension: int,
 ) -> None:
     """``covariance += Xi_F`` in place (see ``process_covariance``), without an n x n temporary
     for the diagonal part."""

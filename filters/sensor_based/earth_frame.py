@@ -20,7 +20,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def weighted_rigid_alignment(source: np.ndarray, target: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def weighted_rigid_alignment(
+    source: np.ndarray, target: np.ndarray, weights: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Rotation ``R`` (d, d) and translation ``t`` (d,) minimising ``sum w_i |R s_i + t - y_i|^2``.
 
     Kabsch/Umeyama closed form: centre both sets on their weighted centroids, SVD of the
@@ -60,7 +62,13 @@ class EarthFrameTracker:
             the filter's motion estimate.
     """
 
-    def __init__(self, dimension: int, rotation: np.ndarray, position: np.ndarray, minimum_spread_m: float = 0.5) -> None:
+    def __init__(
+        self,
+        dimension: int,
+        rotation: np.ndarray,
+        position: np.ndarray,
+        minimum_spread_m: float = 0.5,
+    ) -> None:
         self.dimension = dimension
         self.rotation = np.array(rotation, dtype=float)
         self.position = np.array(position, dtype=float)
@@ -85,13 +93,22 @@ class EarthFrameTracker:
                 since the previous snapshot (body k in body k-1), used when the maps share too
                 few landmarks.
         """
-        weights_now = 1.0 / np.maximum(np.trace(covariances, axis1=1, axis2=2), 1e-12) if len(ids) else np.zeros(0)
+        weights_now = (
+            1.0 / np.maximum(np.trace(covariances, axis1=1, axis2=2), 1e-12)
+            if len(ids)
+            else np.zeros(0)
+        )
         common = [k for k, landmark_id in enumerate(ids) if int(landmark_id) in self._previous]
         increment = None
         if common:
             current = positions[common]
             previous = np.stack([self._previous[int(ids[k])][0] for k in common])
-            weights = np.array([1.0 / (1.0 / weights_now[k] + 1.0 / self._previous[int(ids[k])][1]) for k in common])
+            weights = np.array(
+                [
+                    1.0 / (1.0 / weights_now[k] + 1.0 / self._previous[int(ids[k])][1])
+                    for k in common
+                ]
+            )
             if _well_spread(current, self.minimum_spread_m):
                 increment = weighted_rigid_alignment(current, previous, weights)
         if increment is None:

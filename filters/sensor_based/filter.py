@@ -59,10 +59,14 @@ from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
 from filters.association import associate_jcbb, chi2_gate, individual_compatibility
-from filters.sensor_based.dynamics import ProcessNoise, propagate, rate_dimension, skew_rate
+from filters.sensor_based.dynamics import ProcessNoise, propagate, rate_dimension
 from filters.sensor_based.earth_frame import EarthFrameTracker
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
-from filters.sensor_based.loop_closing import LoopClosurePolicy, constraint_update, find_loop_closure
+from filters.sensor_based.loop_closing import (
+    LoopClosurePolicy,
+    constraint_update,
+    find_loop_closure,
+)
 from filters.sensor_based.state import FilterState
 from filters.sensor_based.update import kalman_update
 
@@ -80,64 +84,111 @@ class SensorBasedConfig(BaseModel):
         "axis [forward, lateral(, vertical)], e.g. a path-following vehicle whose lateral body velocity is zero",
     )
     sigma_gyro_bias_rad_s: float = Field(
-        5.7e-5 * DEG, ge=0, description="sigma_br: gyro-bias random walk [rad/s/sqrt(s)] (paper 5.7e-5 deg/s)"
+        5.7e-5 * DEG,
+        ge=0,
+        description="sigma_br: gyro-bias random walk [rad/s/sqrt(s)] (paper 5.7e-5 deg/s)",
     )
-    sigma_landmark_m: float = Field(0.05, ge=0, description="sigma_p: landmark disturbance [m/sqrt(s)] (paper 0.05)")
-    sigma_direction: float = Field(0.01, ge=0, description="disturbance of direction features [1/sqrt(s)]")
+    sigma_landmark_m: float = Field(
+        0.05, ge=0, description="sigma_p: landmark disturbance [m/sqrt(s)] (paper 0.05)"
+    )
+    sigma_direction: float = Field(
+        0.01, ge=0, description="disturbance of direction features [1/sqrt(s)]"
+    )
     gyro_noise_density: float | None = Field(
         None,
         ge=0,
         description="gyro white noise [rad/s/sqrt(Hz)] injected into the landmarks through G; None: the dataset's stated value (0 if none)",
     )
     initial_velocity_sigma_m_s: float | None = Field(
-        None, gt=0, description="prior std of the body velocity; None: the dataset's (2 m/s when the velocity is unknown)"
+        None,
+        gt=0,
+        description="prior std of the body velocity; None: the dataset's (2 m/s when the velocity is unknown)",
     )
     initial_velocity_error_m_s: list[float] | None = Field(
-        None, description="added to the dataset's initial body velocity (to show convergence from a wrong guess)"
+        None,
+        description="added to the dataset's initial body velocity (to show convergence from a wrong guess)",
     )
-    initial_gyro_bias_rad_s: list[float] | None = Field(None, description="initial bias guess (default zero)")
+    initial_gyro_bias_rad_s: list[float] | None = Field(
+        None, description="initial bias guess (default zero)"
+    )
     initial_gyro_bias_sigma_rad_s: float | None = Field(
-        None, gt=0, description="prior bias std; None: the dataset's stated value (0.05 rad/s if none)"
+        None,
+        gt=0,
+        description="prior bias std; None: the dataset's stated value (0.05 rad/s if none)",
     )
     association: Literal["jcbb", "ids"] = Field(
         "ids",
         description="ids: use the scan's ids when it has them, JCBB otherwise (as every estimator "
         "here, so `--data ids=false` decides for all); jcbb: always JCBB, ignoring ids",
     )
-    gate_probability: float = Field(0.99, gt=0, lt=1, description="chi-square gate probability (individual and joint)")
+    gate_probability: float = Field(
+        0.99, gt=0, lt=1, description="chi-square gate probability (individual and joint)"
+    )
     new_landmark_gate_probability: float = Field(
         0.9999,
         gt=0,
         lt=1,
         description="an unassociated measurement starts a landmark only if outside every landmark's gate at this looser probability",
     )
-    max_jcbb_nodes: int = Field(20_000, ge=1, description="cap on JCBB interpretation-tree nodes per scan")
-    association_window_s: float = Field(
-        20.0, gt=0, description="associate only landmarks seen within this many seconds (the paper's I_cur)"
+    max_jcbb_nodes: int = Field(
+        20_000, ge=1, description="cap on JCBB interpretation-tree nodes per scan"
     )
-    use_directions: bool = Field(False, description="use the scan's line directions as direction landmarks")
-    direction_sigma_rad: float = Field(2.0 * DEG, gt=0, description="std of a measured line direction [rad]")
+    association_window_s: float = Field(
+        20.0,
+        gt=0,
+        description="associate only landmarks seen within this many seconds (the paper's I_cur)",
+    )
+    use_directions: bool = Field(
+        False, description="use the scan's line directions as direction landmarks"
+    )
+    direction_sigma_rad: float = Field(
+        2.0 * DEG, gt=0, description="std of a measured line direction [rad]"
+    )
     rate_interpolation: Literal["average", "hold"] = Field(
-        "average", description="rate over a gyro interval: mean of its two samples, or the earlier sample held"
+        "average",
+        description="rate over a gyro interval: mean of its two samples, or the earlier sample held",
     )
     discretization: Literal["exact", "euler"] = Field(
         "exact",
         description="'exact': the model solved over each step with held inputs (F = expm(A Ts)); 'euler': "
         "eq. (10) as printed (dilates landmarks by (omega Ts)^2/2 per step: a speed bias after turns)",
     )
-    max_step_s: float = Field(0.05, gt=0, description="longest prediction step; longer gaps are sub-stepped")
-    max_gap_s: float = Field(
-        60.0, gt=0, description="a gap between inputs longer than this is an input error (the model is then meaningless)"
+    max_step_s: float = Field(
+        0.05, gt=0, description="longest prediction step; longer gaps are sub-stepped"
     )
-    in_view_range_m: float = Field(5.0, gt=0, description="landmarks predicted within this range should be seen [m]")
-    field_of_view_deg: float = Field(360.0, gt=0, le=360, description="sensor horizontal field of view [deg]")
-    max_missed_in_view: int = Field(100, ge=1, description="consecutive in-view misses before deletion")
-    min_observations: int = Field(3, ge=1, description="fewer sightings than this by probation_s: deleted")
-    probation_s: float = Field(3.0, ge=0, description="age at which min_observations is checked [s]")
+    max_gap_s: float = Field(
+        60.0,
+        gt=0,
+        description="a gap between inputs longer than this is an input error (the model is then meaningless)",
+    )
+    in_view_range_m: float = Field(
+        5.0, gt=0, description="landmarks predicted within this range should be seen [m]"
+    )
+    field_of_view_deg: float = Field(
+        360.0, gt=0, le=360, description="sensor horizontal field of view [deg]"
+    )
+    max_missed_in_view: int = Field(
+        100, ge=1, description="consecutive in-view misses before deletion"
+    )
+    min_observations: int = Field(
+        3, ge=1, description="fewer sightings than this by probation_s: deleted"
+    )
+    probation_s: float = Field(
+        3.0, ge=0, description="age at which min_observations is checked [s]"
+    )
     max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
-    loop_closing: bool = Field(True, description="search for loop closures between the current and old landmark sets (IV-C)")
-    loop_old_after_s: float = Field(60.0, gt=0, description="landmarks unseen for longer than this form the old set I_old [s]")
-    loop_min_pairs: int = Field(5, ge=1, description="jointly compatible pairs needed to close a loop (3-4 let one-niche-off matches through on sim:guerreiro-loop)")
+    loop_closing: bool = Field(
+        True,
+        description="search for loop closures between the current and old landmark sets (IV-C)",
+    )
+    loop_old_after_s: float = Field(
+        60.0, gt=0, description="landmarks unseen for longer than this form the old set I_old [s]"
+    )
+    loop_min_pairs: int = Field(
+        5,
+        ge=1,
+        description="jointly compatible pairs needed to close a loop (3-4 let one-niche-off matches through on sim:guerreiro-loop)",
+    )
     loop_every_s: float = Field(2.0, gt=0, description="how often to search for a loop closure [s]")
     loop_max_old_sigma_m: float = Field(
         1.5,
@@ -145,10 +196,12 @@ class SensorBasedConfig(BaseModel):
         description="old landmarks whose largest position std exceeds this are not loop candidates: a constellation match among landmarks this uncertain is not distinctive [m]",
     )
     loop_unambiguous_only: bool = Field(
-        True, description="reject a loop closure when a second, disjoint constellation match of min_pairs pairs exists"
+        True,
+        description="reject a loop closure when a second, disjoint constellation match of min_pairs pairs exists",
     )
     earth_frame: bool = Field(
-        True, description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose"
+        True,
+        description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose",
     )
     snapshot_every: int = Field(1, ge=1, description="record a landmark snapshot every N scans")
 
@@ -187,16 +240,24 @@ class SensorBasedSlam:
         velocity = np.zeros(d)
         velocity_sigma = config.initial_velocity_sigma_m_s or 2.0
         if start is not None and start.velocity is not None:
-            rotation = rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
+            rotation = (
+                rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
+            )
             velocity = rotation.T @ np.asarray(start.velocity, dtype=float)
             velocity_sigma = config.initial_velocity_sigma_m_s or start.velocity_sigma_m_s
         if config.initial_velocity_error_m_s is not None:
-            velocity = velocity + self._vector(config.initial_velocity_error_m_s, d, "initial_velocity_error_m_s")
+            velocity = velocity + self._vector(
+                config.initial_velocity_error_m_s, d, "initial_velocity_error_m_s"
+            )
         bias = np.zeros(r)
         if config.initial_gyro_bias_rad_s is not None:
             bias = self._vector(config.initial_gyro_bias_rad_s, r, "initial_gyro_bias_rad_s")
-        bias_sigma = config.initial_gyro_bias_sigma_rad_s or sequence.noise.gyro_bias_sigma_rad_s or 0.05
-        self.state = FilterState(d, velocity, velocity_sigma**2 * np.eye(d), bias, bias_sigma**2 * np.eye(r))
+        bias_sigma = (
+            config.initial_gyro_bias_sigma_rad_s or sequence.noise.gyro_bias_sigma_rad_s or 0.05
+        )
+        self.state = FilterState(
+            d, velocity, velocity_sigma**2 * np.eye(d), bias, bias_sigma**2 * np.eye(r)
+        )
         self.manager = LandmarkManager(
             ManagementPolicy(
                 in_view_range_m=config.in_view_range_m,
@@ -210,9 +271,13 @@ class SensorBasedSlam:
         self.recorder = EstimateRecorder(d)
         start_rotation, start_position = np.eye(d), np.zeros(d)
         if start is not None:
-            start_rotation = rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
+            start_rotation = (
+                rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
+            )
             start_position = np.asarray(start.position, dtype=float)
-        self.earth = EarthFrameTracker(d, start_rotation, start_position) if config.earth_frame else None
+        self.earth = (
+            EarthFrameTracker(d, start_rotation, start_position) if config.earth_frame else None
+        )
         self.loop_policy = LoopClosurePolicy(
             current_window_s=config.association_window_s,
             old_after_s=max(config.loop_old_after_s, config.association_window_s),
@@ -252,12 +317,16 @@ class SensorBasedSlam:
 
     def _rate_sample(self, t: float, rate: np.ndarray) -> None:
         if rate.size != self.rate_dim:
-            raise InputError(f"{self.name}: gyro sample at t={t:.6f} s has {rate.size} components, expected {self.rate_dim}")
+            raise InputError(
+                f"{self.name}: gyro sample at t={t:.6f} s has {rate.size} components, expected {self.rate_dim}"
+            )
         if not np.all(np.isfinite(rate)):
             # Keep the previous rate (zero-order hold) and say so: a NaN must not reach the state.
             self.skipped["nan_rate"] += 1
             if self.skipped["nan_rate"] == 1:
-                self.recorder.event(t, "skipped_input", reason="non-finite gyro rate; previous rate held")
+                self.recorder.event(
+                    t, "skipped_input", reason="non-finite gyro rate; previous rate held"
+                )
             self._propagate_to(t)
             return
         if self.config.rate_interpolation == "average" and self.rate is not None:
@@ -274,9 +343,13 @@ class SensorBasedSlam:
             return
         dt = t - self.t
         if dt < 0:
-            raise InputError(f"{self.name}: time goes backwards at t={t:.6f} s (previous {self.t:.6f} s)")
+            raise InputError(
+                f"{self.name}: time goes backwards at t={t:.6f} s (previous {self.t:.6f} s)"
+            )
         if dt > self.config.max_gap_s:
-            raise InputError(f"{self.name}: gap of {dt:.3f} s before t={t:.6f} s exceeds max_gap_s={self.config.max_gap_s}")
+            raise InputError(
+                f"{self.name}: gap of {dt:.3f} s before t={t:.6f} s exceeds max_gap_s={self.config.max_gap_s}"
+            )
         if dt == 0.0:
             return
         if rate is None:
@@ -304,7 +377,9 @@ class SensorBasedSlam:
         (only the Earth-frame fallback uses it)."""
         if self.earth is None:
             return
-        self._motion_translation = self._motion_translation + self._motion_rotation @ (self.state.velocity * dt)
+        self._motion_translation = self._motion_translation + self._motion_rotation @ (
+            self.state.velocity * dt
+        )
         omega = (np.asarray(rate, dtype=float) - self.state.bias) * dt
         increment = rot2(float(omega[0])) if self.dimension == 2 else so3_exp(omega)
         self._motion_rotation = self._motion_rotation @ increment
@@ -312,19 +387,36 @@ class SensorBasedSlam:
     # ------------------------------------------------------------------ scans
     def _scan(self, scan: LandmarkScan) -> None:
         d = self.dimension
-        points = np.asarray(scan.points, dtype=float).reshape(-1, d) if np.size(scan.points) else np.zeros((0, d))
-        covs = np.asarray(scan.covariances, dtype=float).reshape(-1, d, d) if np.size(scan.covariances) else np.zeros((0, d, d))
+        points = (
+            np.asarray(scan.points, dtype=float).reshape(-1, d)
+            if np.size(scan.points)
+            else np.zeros((0, d))
+        )
+        covs = (
+            np.asarray(scan.covariances, dtype=float).reshape(-1, d, d)
+            if np.size(scan.covariances)
+            else np.zeros((0, d, d))
+        )
         if points.shape[0] != covs.shape[0]:
-            raise InputError(f"{self.name}: scan at t={scan.t:.6f} s has {points.shape[0]} points but {covs.shape[0]} covariances")
+            raise InputError(
+                f"{self.name}: scan at t={scan.t:.6f} s has {points.shape[0]} points but {covs.shape[0]} covariances"
+            )
         if self.rate is None:
             self.skipped["scan_without_rate"] += 1
         self._propagate_to(scan.t)
         t = float(scan.t)
         k = points.shape[0]
-        usable = np.all(np.isfinite(points), axis=1) & np.all(np.isfinite(covs.reshape(k, d * d)), axis=1)
+        usable = np.all(np.isfinite(points), axis=1) & np.all(
+            np.isfinite(covs.reshape(k, d * d)), axis=1
+        )
         if not usable.all():
             self.skipped["nan_points"] += int((~usable).sum())
-            self.recorder.event(t, "skipped_input", reason="non-finite scan points dropped", count=int((~usable).sum()))
+            self.recorder.event(
+                t,
+                "skipped_input",
+                reason="non-finite scan points dropped",
+                count=int((~usable).sum()),
+            )
         directions = None
         if self.config.use_directions and scan.directions is not None:
             directions = np.asarray(scan.directions, dtype=float).reshape(k, -1, d)
@@ -340,7 +432,11 @@ class SensorBasedSlam:
                     assignment[j] = landmark_id
             unassigned_new = [j for j in usable_idx if assignment[j] < 0]
         else:
-            current = self.manager.recently_seen(ids, t, self.config.association_window_s) if len(ids) else np.zeros(0, bool)
+            current = (
+                self.manager.recently_seen(ids, t, self.config.association_window_s)
+                if len(ids)
+                else np.zeros(0, bool)
+            )
             cur_idx = np.flatnonzero(current)
             cur_rows = (cur_idx[:, None] * d + np.arange(d)[None, :]).ravel()
             result = associate_jcbb(
@@ -359,18 +455,33 @@ class SensorBasedSlam:
             # landmark's gate and would otherwise become duplicates.
             near = np.zeros(len(usable_idx), dtype=bool)
             if len(cur_idx) and len(usable_idx):
-                distances = individual_compatibility(points[usable_idx], covs[usable_idx], positions[cur_idx], joint[np.ix_(cur_rows, cur_rows)])
-                near = (distances < chi2_gate(d, self.config.new_landmark_gate_probability)).any(axis=1)
-            unassigned_new = [j for local, j in enumerate(usable_idx) if result.assignments[local] < 0 and not near[local]]
+                distances = individual_compatibility(
+                    points[usable_idx],
+                    covs[usable_idx],
+                    positions[cur_idx],
+                    joint[np.ix_(cur_rows, cur_rows)],
+                )
+                near = (distances < chi2_gate(d, self.config.new_landmark_gate_probability)).any(
+                    axis=1
+                )
+            unassigned_new = [
+                j
+                for local, j in enumerate(usable_idx)
+                if result.assignments[local] < 0 and not near[local]
+            ]
             if result.truncated:
                 self.recorder.event(t, "jcbb_truncated", nodes=result.nodes)
 
         self.state.visible[:] = False  # I_O is redefined by every scan (section IV-B)
         self._update(t, points, covs, directions, assignment)
         if not (self.config.association == "ids" and scan.ids is not None):
-            unassigned_new = self._distinct(points, covs, unassigned_new)  # ids are distinct already
+            unassigned_new = self._distinct(
+                points, covs, unassigned_new
+            )  # ids are distinct already
         for j in unassigned_new:
-            landmark_id = self._add_landmark(t, points[j], covs[j], None if directions is None else directions[j])
+            landmark_id = self._add_landmark(
+                t, points[j], covs[j], None if directions is None else directions[j]
+            )
             assignment[j] = landmark_id
             is_new[j] = True
             if scan.ids is not None and self.config.association == "ids":
@@ -381,12 +492,18 @@ class SensorBasedSlam:
         seen_ids = set(int(a) for a in assignment if a >= 0)
         state = self.state
         ids, positions, joint = state.landmark_positions()
-        blocks = np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))]) if len(ids) else np.zeros((0, d, d))
+        blocks = (
+            np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))])
+            if len(ids)
+            else np.zeros((0, d, d))
+        )
         doomed = self.manager.after_scan(t, ids, np.isin(ids, list(seen_ids)), positions, blocks)
         if doomed:
             state.remove_landmarks(doomed)
             self.manager.removed(doomed)
-            self.true_to_map = {key: value for key, value in self.true_to_map.items() if value not in set(doomed)}
+            self.true_to_map = {
+                key: value for key, value in self.true_to_map.items() if value not in set(doomed)
+            }
         if self.config.loop_closing and t - self._last_loop_search >= self.loop_policy.every_s:
             self._last_loop_search = t
             self._close_loops(t)
@@ -396,7 +513,11 @@ class SensorBasedSlam:
         self._record_vehicle(t)
         if self.earth is not None:
             ids, positions, joint = state.landmark_positions()
-            blocks = np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))]) if len(ids) else np.zeros((0, d, d))
+            blocks = (
+                np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))])
+                if len(ids)
+                else np.zeros((0, d, d))
+            )
             self.earth.step(ids, positions, blocks, self._motion_rotation, self._motion_translation)
             self._motion_rotation, self._motion_translation = np.eye(d), np.zeros(d)
             self._record_pose(t)
@@ -415,8 +536,18 @@ class SensorBasedSlam:
         if len(old):
             # Measured on the data: the true revisit on sim:guerreiro-loop pairs old landmarks
             # of std ~0.6 m; Victoria Park's false closures had 2-21 m (trees 5-10 m apart).
-            blocks = np.stack([joint[i * self.dimension : (i + 1) * self.dimension, i * self.dimension : (i + 1) * self.dimension] for i in old])
-            old = old[np.sqrt(np.linalg.eigvalsh(blocks)[:, -1]) <= self.config.loop_max_old_sigma_m]
+            blocks = np.stack(
+                [
+                    joint[
+                        i * self.dimension : (i + 1) * self.dimension,
+                        i * self.dimension : (i + 1) * self.dimension,
+                    ]
+                    for i in old
+                ]
+            )
+            old = old[
+                np.sqrt(np.linalg.eigvalsh(blocks)[:, -1]) <= self.config.loop_max_old_sigma_m
+            ]
         pairs = find_loop_closure(positions, joint, current, old, self.loop_policy)
         if not pairs:
             return
@@ -435,7 +566,10 @@ class SensorBasedSlam:
             if state.visible[removed_feature]:
                 state.visible[kept_feature] = True
                 state.measured[kept_feature] = state.measured[removed_feature]
-            self.true_to_map = {key: (kept if value == removed else value) for key, value in self.true_to_map.items()}
+            self.true_to_map = {
+                key: (kept if value == removed else value)
+                for key, value in self.true_to_map.items()
+            }
             fused.append([kept, removed])
         removed_ids = [removed for _, removed in fused]
         state.remove_landmarks(removed_ids)
@@ -461,9 +595,13 @@ class SensorBasedSlam:
         """Covariance of a measured unit direction: sigma^2 across it, a small spread along it."""
         unit = direction / np.linalg.norm(direction)
         sigma2 = self.config.direction_sigma_rad**2
-        return sigma2 * (np.eye(self.dimension) - np.outer(unit, unit)) + 0.01 * sigma2 * np.outer(unit, unit)
+        return sigma2 * (np.eye(self.dimension) - np.outer(unit, unit)) + 0.01 * sigma2 * np.outer(
+            unit, unit
+        )
 
-    def _add_landmark(self, t: float, point: np.ndarray, cov: np.ndarray, directions: np.ndarray | None) -> int:
+    def _add_landmark(
+        self, t: float, point: np.ndarray, cov: np.ndarray, directions: np.ndarray | None
+    ) -> int:
         direction_values = direction_covs = None
         if directions is not None:
             valid = [u for u in directions if np.all(np.isfinite(u)) and np.linalg.norm(u) > 0]
@@ -474,14 +612,24 @@ class SensorBasedSlam:
         self.manager.created(landmark_id, t)
         return landmark_id
 
-    def _update(self, t: float, points: np.ndarray, covs: np.ndarray, directions: np.ndarray | None, assignment: np.ndarray) -> None:
+    def _update(
+        self,
+        t: float,
+        points: np.ndarray,
+        covs: np.ndarray,
+        directions: np.ndarray | None,
+        assignment: np.ndarray,
+    ) -> None:
         state = self.state
         d = self.dimension
         measured_features: list[int] = []
         values: list[np.ndarray] = []
         cov_blocks: list[np.ndarray] = []
         groups: list[np.ndarray] = []
-        position_of = {int(owner): index for index, owner in zip(state.position_features(), state.landmark_ids())}
+        position_of = {
+            int(owner): index
+            for index, owner in zip(state.position_features(), state.landmark_ids())
+        }
         for j in np.flatnonzero(assignment >= 0):
             landmark_id = int(assignment[j])
             start = len(values) * d
@@ -495,7 +643,9 @@ class SensorBasedSlam:
                     for u in directions[j]:
                         if not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
                             continue
-                        cosine = float(u @ predicted) / (np.linalg.norm(u) * max(np.linalg.norm(predicted), 1e-12))
+                        cosine = float(u @ predicted) / (
+                            np.linalg.norm(u) * max(np.linalg.norm(predicted), 1e-12)
+                        )
                         if abs(cosine) > abs(best_cos):
                             best, best_cos = u, cosine
                     if best is not None and abs(best_cos) > math.cos(math.radians(30.0)):
@@ -524,14 +674,36 @@ class SensorBasedSlam:
         """The body-frame map now: ids, positions (L, d), marginal covariances (L, d, d)."""
         d = self.dimension
         ids, positions, joint = self.state.landmark_positions()
-        covs = np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))]) if len(ids) else np.zeros((0, d, d))
-        return LandmarkMap(ids=ids.copy(), positions=positions.copy(), covariances=covs, frame=Frame.BODY, t=float(t))
+        covs = (
+            np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))])
+            if len(ids)
+            else np.zeros((0, d, d))
+        )
+        return LandmarkMap(
+            ids=ids.copy(),
+            positions=positions.copy(),
+            covariances=covs,
+            frame=Frame.BODY,
+            t=float(t),
+        )
 
     def _record_vehicle(self, t: float) -> None:
         state = self.state
         d, nv = self.dimension, state.vehicle_dim
-        self.recorder.block(BlockName.VELOCITY, t, state.velocity.copy(), state.covariance[:d, :d].copy(), Frame.BODY)
-        self.recorder.block(BlockName.GYRO_BIAS, t, state.bias.copy(), state.covariance[d:nv, d:nv].copy(), Frame.BODY)
+        self.recorder.block(
+            BlockName.VELOCITY,
+            t,
+            state.velocity.copy(),
+            state.covariance[:d, :d].copy(),
+            Frame.BODY,
+        )
+        self.recorder.block(
+            BlockName.GYRO_BIAS,
+            t,
+            state.bias.copy(),
+            state.covariance[d:nv, d:nv].copy(),
+            Frame.BODY,
+        )
         # The joint vehicle block (velocity and bias are correlated): for the vehicle NEES.
         self.recorder.extra("vehicle_t", float(t))
         self.recorder.extra("vehicle_state", state.x[:nv].copy())
@@ -543,7 +715,12 @@ class SensorBasedSlam:
             return
         rotation = self.earth.rotation
         if self.dimension == 2:
-            self.recorder.pose(t, self.earth.position.copy(), float(np.arctan2(rotation[1, 0], rotation[0, 0])), None)
+            self.recorder.pose(
+                t,
+                self.earth.position.copy(),
+                float(np.arctan2(rotation[1, 0], rotation[0, 0])),
+                None,
+            )
         else:
             self.recorder.pose(t, self.earth.position.copy(), quat_wxyz_from_matrix(rotation), None)
 
@@ -554,7 +731,13 @@ class SensorBasedSlam:
         current = self.landmark_map(self.t if self.t is not None else 0.0)
         rotation = self.earth.rotation
         covs = None if current.covariances is None else rotation @ current.covariances @ rotation.T
-        return LandmarkMap(ids=current.ids, positions=self.earth.to_earth(current.positions), covariances=covs, frame=Frame.WORLD, t=None)
+        return LandmarkMap(
+            ids=current.ids,
+            positions=self.earth.to_earth(current.positions),
+            covariances=covs,
+            frame=Frame.WORLD,
+            t=None,
+        )
 
     def estimate(self) -> Estimate:
         pose_note = (

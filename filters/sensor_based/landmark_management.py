@@ -69,7 +69,9 @@ class LandmarkManager:
 
     policy: ManagementPolicy
     records: dict[int, LandmarkRecord] = field(default_factory=dict)
-    deleted: dict[str, int] = field(default_factory=lambda: {"unseen_in_view": 0, "intermittent": 0, "cap": 0})
+    deleted: dict[str, int] = field(
+        default_factory=lambda: {"unseen_in_view": 0, "intermittent": 0, "cap": 0}
+    )
 
     def created(self, landmark_id: int, t: float) -> None:
         self.records[landmark_id] = LandmarkRecord(created_t=t, last_seen_t=t)
@@ -80,7 +82,9 @@ class LandmarkManager:
 
     def recently_seen(self, landmark_ids: np.ndarray, t: float, window_s: float) -> np.ndarray:
         """(L,) bool: seen within ``window_s`` of ``t`` (the paper's current set I_cur)."""
-        return np.array([t - self.records[int(i)].last_seen_t <= window_s for i in landmark_ids], dtype=bool)
+        return np.array(
+            [t - self.records[int(i)].last_seen_t <= window_s for i in landmark_ids], dtype=bool
+        )
 
     def in_view(self, positions: np.ndarray, position_covs: np.ndarray) -> np.ndarray:
         """(L,) bool: predicted inside range and field of view, and known well enough."""
@@ -127,7 +131,10 @@ class LandmarkManager:
             if record.missed_in_view >= self.policy.max_missed_in_view:
                 doomed.append(int(landmark_id))
                 self.deleted["unseen_in_view"] += 1
-            elif t - record.created_t >= self.policy.probation_s and record.observations < self.policy.min_observations:
+            elif (
+                t - record.created_t >= self.policy.probation_s
+                and record.observations < self.policy.min_observations
+            ):
                 doomed.append(int(landmark_id))
                 self.deleted["intermittent"] += 1
         remaining = len(landmark_ids) - len(doomed)

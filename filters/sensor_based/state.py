@@ -24,11 +24,20 @@ class FilterState:
         visible: (F,) bool, measured in the latest scan (the set I_O).
     """
 
-    def __init__(self, dimension: int, velocity: np.ndarray, velocity_cov: np.ndarray, bias: np.ndarray, bias_cov: np.ndarray) -> None:
+    def __init__(
+        self,
+        dimension: int,
+        velocity: np.ndarray,
+        velocity_cov: np.ndarray,
+        bias: np.ndarray,
+        bias_cov: np.ndarray,
+    ) -> None:
         self.dimension = dimension
         self.rate_dim = rate_dimension(dimension)
         self.vehicle_dim = dimension + self.rate_dim
-        self.x = np.concatenate([np.asarray(velocity, float).ravel(), np.asarray(bias, float).ravel()])
+        self.x = np.concatenate(
+            [np.asarray(velocity, float).ravel(), np.asarray(bias, float).ravel()]
+        )
         self.covariance = np.zeros((self.vehicle_dim, self.vehicle_dim))
         self.covariance[:dimension, :dimension] = velocity_cov
         self.covariance[dimension:, dimension:] = bias_cov
@@ -67,7 +76,11 @@ class FilterState:
     def state_indices(self, feature_indices: np.ndarray) -> np.ndarray:
         """State-vector indices of features, (len * d,) in feature order."""
         feature_indices = np.asarray(feature_indices, dtype=int)
-        return (self.vehicle_dim + feature_indices[:, None] * self.dimension + np.arange(self.dimension)[None, :]).ravel()
+        return (
+            self.vehicle_dim
+            + feature_indices[:, None] * self.dimension
+            + np.arange(self.dimension)[None, :]
+        ).ravel()
 
     def direction_features(self, landmark_id: int) -> np.ndarray:
         return np.flatnonzero((self.owner == landmark_id) & ~self.is_position)
@@ -76,10 +89,20 @@ class FilterState:
         """(ids (L,), positions (L, d), joint covariance of all positions (L*d, L*d))."""
         features = self.position_features()
         indices = self.state_indices(features)
-        return self.owner[features], self.features[features], self.covariance[np.ix_(indices, indices)]
+        return (
+            self.owner[features],
+            self.features[features],
+            self.covariance[np.ix_(indices, indices)],
+        )
 
     # ------------------------------------------------------------------ edits
-    def add_landmark(self, position: np.ndarray, position_cov: np.ndarray, directions: np.ndarray | None = None, direction_covs: np.ndarray | None = None) -> int:
+    def add_landmark(
+        self,
+        position: np.ndarray,
+        position_cov: np.ndarray,
+        directions: np.ndarray | None = None,
+        direction_covs: np.ndarray | None = None,
+    ) -> int:
         """Append a landmark initialised from a body-frame measurement; returns its map id.
 
         In the robocentric frame the measurement *is* the landmark, so the new block has the

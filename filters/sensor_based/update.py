@@ -60,6 +60,8 @@ def kalman_update(
     khp = gain @ hp
     post = covariance - khp - khp.T + gain @ s @ gain.T
     post = 0.5 * (post + post.T)
-    nis = np.array([float(innovation[g] @ np.linalg.solve(s[np.ix_(g, g)], innovation[g])) for g in groups])
+    nis = np.array(
+        [float(innovation[g] @ np.linalg.solve(s[np.ix_(g, g)], innovation[g])) for g in groups]
+    )
     dof = np.array([len(g) for g in groups], dtype=int)
     return x_post, post, UpdateResult(nis, dof)

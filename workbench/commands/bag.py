@@ -17,12 +17,12 @@ table row and the others still run.
 
 from __future__ import annotations
 
-import io
 import csv
+import io
 import sys
 import time
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import numpy as np
 import typer
@@ -45,8 +45,13 @@ def _progress(disable: bool):
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     return Progress(
-        TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[rate]}"), TimeElapsedColumn(),
-        transient=True, disable=disable,
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]}"),
+        TimeElapsedColumn(),
+        transient=True,
+        disable=disable,
     )
 
 
@@ -56,13 +61,17 @@ def run_front_end(sequence, source, lidar_messages: int, disable_progress: bool)
 
     started = time.perf_counter()
     with _progress(disable_progress) as progress:
-        task = progress.add_task("front end (KISS-ICP + corners)", total=lidar_messages or None, rate="")
+        task = progress.add_task(
+            "front end (KISS-ICP + corners)", total=lidar_messages or None, rate=""
+        )
         frames = 0
         for measurement in sequence.measurements():
             if isinstance(measurement, PointCloud):
                 frames += 1
                 elapsed = time.perf_counter() - started
-                progress.update(task, completed=frames, rate=f"{frames / max(elapsed, 1e-9):.1f} frames/s")
+                progress.update(
+                    task, completed=frames, rate=f"{frames / max(elapsed, 1e-9):.1f} frames/s"
+                )
     return time.perf_counter() - started
 
 
@@ -70,32 +79,60 @@ def corners_csv(frames) -> str:
     """One line per detection: frame time, index, position, covariance (upper triangle)."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(["t", "index", "x", "y", "z", "cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"])
+    writer.writerow(
+        ["t", "index", "x", "y", "z", "cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"]
+    )
     for frame in frames:
         if frame.corners is None:
             continue
-        for index, (point, covariance) in enumerate(zip(frame.corners.points, frame.corners.covariances)):
+        for index, (point, covariance) in enumerate(
+            zip(frame.corners.points, frame.corners.covariances)
+        ):
             padded = np.zeros(3)
             padded[: len(point)] = point
             full = np.zeros((3, 3))
             full[: len(point), : len(point)] = covariance
-            writer.writerow([f"{frame.t:.9f}", index, *(f"{v:.6f}" for v in padded), *(f"{full[i, j]:.3e}" for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)))])
+            writer.writerow(
+                [
+                    f"{frame.t:.9f}",
+                    index,
+                    *(f"{v:.6f}" for v in padded),
+                    *(
+                        f"{full[i, j]:.3e}"
+                        for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+                    ),
+                ]
+            )
     return buffer.getvalue()
 
 
 def front_end_metrics(sequence, source, seconds: float) -> dict:
     """The front end's figures (see the module docstring)."""
-    from datasets.lidar.corner_truth import corner_error_statistics, read_corner_truth, score_corners
+    from datasets.lidar.corner_truth import (
+        corner_error_statistics,
+        read_corner_truth,
+        score_corners,
+    )
 
     front_end = source.front_end
     frames = front_end.frames
     metrics: dict = {
         "frames": len(frames),
         "points_per_frame_mean": float(np.mean([f.points for f in frames])) if frames else None,
-        "kiss_icp_ms_mean": 1000.0 * float(np.mean([f.icp_seconds for f in frames])) if frames else None,
-        "kiss_icp_ms_median": 1000.0 * float(np.median([f.icp_seconds for f in frames])) if frames else None,
-        "corner_ms_mean": 1000.0 * float(np.mean([f.corner_seconds for f in frames])) if frames else None,
-        "corners_per_frame_mean": float(np.mean([len(f.corners.points) for f in frames if f.corners is not None])) if frames and front_end.settings.corners else None,
+        "kiss_icp_ms_mean": 1000.0 * float(np.mean([f.icp_seconds for f in frames]))
+        if frames
+        else None,
+        "kiss_icp_ms_median": 1000.0 * float(np.median([f.icp_seconds for f in frames]))
+        if frames
+        else None,
+        "corner_ms_mean": 1000.0 * float(np.mean([f.corner_seconds for f in frames]))
+        if frames
+        else None,
+        "corners_per_frame_mean": float(
+            np.mean([len(f.corners.points) for f in frames if f.corners is not None])
+        )
+        if frames and front_end.settings.corners
+        else None,
         "frames_per_s": len(frames) / seconds if seconds > 0 else None,
         "kiss_icp_ate_rmse_m": None,
         "corner_precision": None,
@@ -110,7 +147,9 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
         from workbench.metrics.ate import ate_report
 
         try:
-            report = ate_report(truth, trajectory, align="se3", max_diff_s=0.05, allow_degenerate=True)
+            report = ate_report(
+                truth, trajectory, align="se3", max_diff_s=0.05, allow_degenerate=True
+            )
             metrics["kiss_icp_ate_rmse_m"] = report["rmse_m"]
             metrics["kiss_icp_ate"] = report
         except InputError as error:
@@ -119,8 +158,23 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
     if sidecar and truth is not None and front_end.settings.corners:
         config = front_end.settings.corner
         corner_truth = read_corner_truth(Path(sidecar))
-        metrics.update(score_corners([(f.t, f.corners.points) for f in frames], corner_truth, truth, config.min_range_m, config.max_range_m, config.azimuth_resolution_deg))
-        metrics.update(corner_error_statistics([(f.t, f.corners.points, f.corners.covariances) for f in frames], corner_truth, truth))
+        metrics.update(
+            score_corners(
+                [(f.t, f.corners.points) for f in frames],
+                corner_truth,
+                truth,
+                config.min_range_m,
+                config.max_range_m,
+                config.azimuth_resolution_deg,
+            )
+        )
+        metrics.update(
+            corner_error_statistics(
+                [(f.t, f.corners.points, f.corners.covariances) for f in frames],
+                corner_truth,
+                truth,
+            )
+        )
     return metrics
 
 
@@ -166,8 +220,12 @@ def write_tables(out: Path, rows: list[dict]) -> None:
     writer.writerow(["estimator", "status"] + [key for key, _ in TABLE_COLUMNS])
     for row in rows:
         values = [row.get(key) for key, _ in TABLE_COLUMNS]
-        lines.append("| " + " | ".join([row["estimator"], row["status"]] + [_cell(v) for v in values]) + " |")
-        writer.writerow([row["estimator"], row["status"]] + ["" if v is None else v for v in values])
+        lines.append(
+            "| " + " | ".join([row["estimator"], row["status"]] + [_cell(v) for v in values]) + " |"
+        )
+        writer.writerow(
+            [row["estimator"], row["status"]] + ["" if v is None else v for v in values]
+        )
     write_atomic(out / "table.md", "\n".join(lines) + "\n")
     write_atomic(out / "table.csv", buffer.getvalue())
 
@@ -193,12 +251,25 @@ def estimator_overrides(assignments: list[str], names: list[str]) -> dict[str, d
         if not dot or not option:
             raise InputError(f"--set expects ESTIMATOR.key=value, got '{key}={value}'")
         if name not in overrides:
-            raise InputError(f"--set {key}: '{name}' is not among the estimators run ({', '.join(names)})")
+            raise InputError(
+                f"--set {key}: '{name}' is not among the estimators run ({', '.join(names)})"
+            )
         overrides[name][option] = value
     return overrides
 
 
-def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str | None, ground_truth_topic: str | None, estimators: str | None, data: list[str], plots: bool, quiet: bool = False, settings_overrides: list[str] | None = None) -> list[dict]:
+def bag_command(
+    path: Path,
+    out: Path,
+    lidar_topic: str | None,
+    imu_topic: str | None,
+    ground_truth_topic: str | None,
+    estimators: str | None,
+    data: list[str],
+    plots: bool,
+    quiet: bool = False,
+    settings_overrides: list[str] | None = None,
+) -> list[dict]:
     """The whole command (module docstring); returns the table rows."""
     from datasets.bags.reader import open_bag
     from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
@@ -207,7 +278,11 @@ def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str |
     from workbench.runner import RunRequest, execute
 
     options = parse_assignments(data, "--data")
-    for key, value in (("lidar_topic", lidar_topic), ("imu_topic", imu_topic), ("ground_truth_topic", ground_truth_topic)):
+    for key, value in (
+        ("lidar_topic", lidar_topic),
+        ("imu_topic", imu_topic),
+        ("ground_truth_topic", ground_truth_topic),
+    ):
         if value:
             options[key] = value
     settings = build_model(BagOptions, nest_dotted(options), f"bag:{path}")
@@ -222,7 +297,10 @@ def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str |
 
     seconds = run_front_end(sequence, source, lidar_messages, disable)
     if not source.front_end.frames:
-        raise InputError(f"{path}: no usable point clouds on {sequence.metadata['topics']['lidar']}" + (f" ({'; '.join(source.report.lines())})" if source.report.skipped else ""))
+        raise InputError(
+            f"{path}: no usable point clouds on {sequence.metadata['topics']['lidar']}"
+            + (f" ({'; '.join(source.report.lines())})" if source.report.skipped else "")
+        )
     front_dir = out / "frontend"
     front_dir.mkdir(parents=True, exist_ok=True)
     trajectory = source.front_end.trajectory()
@@ -235,17 +313,42 @@ def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str |
         typer.echo(f"warning: {path}: {line}", err=True)
 
     sequence = with_corner_ids(sequence, source)
-    rows = [{"estimator": "kiss-icp (front end)", "status": "ok", "ate_rmse_m": front["kiss_icp_ate_rmse_m"], "time_per_step_ms_median": front["kiss_icp_ms_median"]}]
+    rows = [
+        {
+            "estimator": "kiss-icp (front end)",
+            "status": "ok",
+            "ate_rmse_m": front["kiss_icp_ate_rmse_m"],
+            "time_per_step_ms_median": front["kiss_icp_ms_median"],
+        }
+    ]
     data_options = tuple(options.items())
     for name in names:
         row = {"estimator": name, "status": "ok"}
         try:
             from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-            with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("t={task.completed:.1f} s"), TimeElapsedColumn(), transient=True, disable=disable) as progress:
+            with Progress(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                TextColumn("t={task.completed:.1f} s"),
+                TimeElapsedColumn(),
+                transient=True,
+                disable=disable,
+            ) as progress:
                 start = sequence.initial_state.t if sequence.initial_state else 0.0
                 task = progress.add_task(name, total=None)
-                result = execute(RunRequest(estimator=name, dataset=sequence.name, overrides=tuple(overrides[name].items()), data_options=data_options), sequence=sequence, on_step=lambda t: progress.update(task, completed=t - start))
+                result = execute(
+                    RunRequest(
+                        estimator=name,
+                        dataset=sequence.name,
+                        overrides=tuple(overrides[name].items()),
+                        data_options=data_options,
+                    ),
+                    sequence=sequence,
+                    on_step=lambda t, task=task, start=start: progress.update(
+                        task, completed=t - start
+                    ),
+                )
             metrics = write_run_folder(result, out / name, plots=plots)
             row.update({key: metrics.get(key) for key, _ in TABLE_COLUMNS})
         except InputError as error:
@@ -263,17 +366,56 @@ def bag_command(path: Path, out: Path, lidar_topic: str | None, imu_topic: str |
 def register(app: typer.Typer) -> None:
     @app.command("bag")
     def bag(
-        path: Annotated[Path, typer.Argument(help="ROS 1 .bag file or ROS 2 bag folder (sqlite3 or mcap)")],
+        path: Annotated[
+            Path, typer.Argument(help="ROS 1 .bag file or ROS 2 bag folder (sqlite3 or mcap)")
+        ],
         out: Annotated[Path, typer.Option("--out", help="output folder")],
-        lidar_topic: Annotated[Optional[str], typer.Option("--lidar-topic", help="PointCloud2 topic (default: found by type)")] = None,
-        imu_topic: Annotated[Optional[str], typer.Option("--imu-topic", help="Imu topic (default: found by type)")] = None,
-        gt_topic: Annotated[Optional[str], typer.Option("--gt-topic", help="Odometry/PoseStamped ground-truth topic")] = None,
-        estimators: Annotated[Optional[str], typer.Option("--estimators", help="comma-separated estimator names (default: all the bag allows)")] = None,
-        data: Annotated[Optional[list[str]], typer.Option("--data", help="bag option key=value, e.g. max_frames=50, kiss.voxel_size_m=0.5 (repeatable)")] = None,
-        set_: Annotated[Optional[list[str]], typer.Option("--set", help="estimator option ESTIMATOR.key=value, e.g. aghili.anchor_source=first-observation (repeatable)")] = None,
-        plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write figures in run folders")] = True,
+        lidar_topic: Annotated[
+            str | None,
+            typer.Option("--lidar-topic", help="PointCloud2 topic (default: found by type)"),
+        ] = None,
+        imu_topic: Annotated[
+            str | None, typer.Option("--imu-topic", help="Imu topic (default: found by type)")
+        ] = None,
+        gt_topic: Annotated[
+            str | None,
+            typer.Option("--gt-topic", help="Odometry/PoseStamped ground-truth topic"),
+        ] = None,
+        estimators: Annotated[
+            str | None,
+            typer.Option(
+                "--estimators", help="comma-separated estimator names (default: all the bag allows)"
+            ),
+        ] = None,
+        data: Annotated[
+            list[str] | None,
+            typer.Option(
+                "--data",
+                help="bag option key=value, e.g. max_frames=50, kiss.voxel_size_m=0.5 (repeatable)",
+            ),
+        ] = None,
+        set_: Annotated[
+            list[str] | None,
+            typer.Option(
+                "--set",
+                help="estimator option ESTIMATOR.key=value, e.g. aghili.anchor_source=first-observation (repeatable)",
+            ),
+        ] = None,
+        plots: Annotated[
+            bool, typer.Option("--plots/--no-plots", help="write figures in run folders")
+        ] = True,
     ) -> None:
         """Lidar bag end to end: KISS-ICP + corners, every estimator, a comparison table."""
-        rows = bag_command(path, out, lidar_topic, imu_topic, gt_topic, estimators, data or [], plots, settings_overrides=set_ or [])
+        rows = bag_command(
+            path,
+            out,
+            lidar_topic,
+            imu_topic,
+            gt_topic,
+            estimators,
+            data or [],
+            plots,
+            settings_overrides=set_ or [],
+        )
         typer.echo((out / "table.md").read_text(), nl=False)
         typer.echo(f"frontend: {out / 'frontend'}; {len(rows) - 1} estimator run(s) in {out}")

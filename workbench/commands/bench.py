@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -36,7 +36,14 @@ def bench(
     plots folder (key ``plots``). ``report_only``: run nothing, report the runs on disk
     (unfinished ones show as missing). ``datasets`` / ``estimators``: only these of the
     suite (names or labels)."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     from workbench.sweep import make_backend, pending_cells, plan_sweep, run_sweep
     from workbench.tables import write_tables
@@ -59,9 +66,15 @@ def bench(
             err=True,
         )
         with Progress(
-            TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("runs"),
-            TimeElapsedColumn(), TextColumn("left"), TimeRemainingColumn(),
-            disable=not interactive, transient=False,
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("runs"),
+            TimeElapsedColumn(),
+            TextColumn("left"),
+            TimeRemainingColumn(),
+            disable=not interactive,
+            transient=False,
         ) as progress:
             task = progress.add_task(f"bench {suite.name}", total=len(pending))
 
@@ -70,7 +83,10 @@ def bench(
                 if not interactive:
                     status = f"failed: {outcome.error}" if outcome.error else "done"
                     finished = int(progress.tasks[0].completed)
-                    typer.echo(f"[{finished}/{len(pending)}] {cell.describe()}: {status} ({outcome.seconds:.1f} s)", err=True)
+                    typer.echo(
+                        f"[{finished}/{len(pending)}] {cell.describe()}: {status} ({outcome.seconds:.1f} s)",
+                        err=True,
+                    )
 
             planned = time.perf_counter()
             summary = run_sweep(plan, backend, run_plots=run_plots, on_done=on_done, cells=pending)
@@ -79,7 +95,9 @@ def bench(
         if plots:
             from workbench.report_plots import write_dataset_plots
 
-            futures = [backend.submit(write_dataset_plots, plan, dataset) for dataset in plan.datasets]
+            futures = [
+                backend.submit(write_dataset_plots, plan, dataset) for dataset in plan.datasets
+            ]
             for future in futures:
                 future.result()
         written["plots"] = out / "plots"
@@ -98,23 +116,56 @@ def register(app: typer.Typer) -> None:
     @app.command("bench")
     def bench_command(
         suite: Annotated[str, typer.Argument(help=f"suite: {', '.join(SUITES)}")] = DEFAULT_SUITE,
-        runs: Annotated[Optional[int], typer.Option("--runs", help="Monte Carlo runs (seeds) per pair; default: the suite's")] = None,
-        out: Annotated[Optional[Path], typer.Option("--out", help="output folder (default: runs/<suite>)")] = None,
-        scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="Dask scheduler address (default: local processes)")] = None,
-        workers: Annotated[Optional[int], typer.Option("--workers", help="local worker processes (default: CPU count)")] = None,
-        plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write the comparison figures")] = True,
-        run_plots: Annotated[bool, typer.Option("--run-plots", help="also write each run folder's own figures (slower)")] = False,
-        report_only: Annotated[bool, typer.Option("--report-only", help="run nothing: table and plots of the runs on disk")] = False,
-        dataset: Annotated[Optional[list[str]], typer.Option("--dataset", help="only this dataset of the suite (repeatable)")] = None,
-        estimator: Annotated[Optional[list[str]], typer.Option("--estimator", help="only this estimator of the suite (repeatable)")] = None,
+        runs: Annotated[
+            int | None,
+            typer.Option("--runs", help="Monte Carlo runs (seeds) per pair; default: the suite's"),
+        ] = None,
+        out: Annotated[
+            Path | None, typer.Option("--out", help="output folder (default: runs/<suite>)")
+        ] = None,
+        scheduler: Annotated[
+            str | None,
+            typer.Option("--scheduler", help="Dask scheduler address (default: local processes)"),
+        ] = None,
+        workers: Annotated[
+            int | None,
+            typer.Option("--workers", help="local worker processes (default: CPU count)"),
+        ] = None,
+        plots: Annotated[
+            bool, typer.Option("--plots/--no-plots", help="write the comparison figures")
+        ] = True,
+        run_plots: Annotated[
+            bool,
+            typer.Option("--run-plots", help="also write each run folder's own figures (slower)"),
+        ] = False,
+        report_only: Annotated[
+            bool,
+            typer.Option("--report-only", help="run nothing: table and plots of the runs on disk"),
+        ] = False,
+        dataset: Annotated[
+            list[str] | None,
+            typer.Option("--dataset", help="only this dataset of the suite (repeatable)"),
+        ] = None,
+        estimator: Annotated[
+            list[str] | None,
+            typer.Option("--estimator", help="only this estimator of the suite (repeatable)"),
+        ] = None,
     ) -> None:
         """Run a benchmark suite: every estimator on every dataset it can run on, N seeds,
         then the comparison table and plots. Re-running resumes."""
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
         written = bench(
-            suite, runs, out or Path("runs") / suite, scheduler, workers, plots, run_plots,
-            report_only=report_only, datasets=dataset, estimators=estimator,
+            suite,
+            runs,
+            out or Path("runs") / suite,
+            scheduler,
+            workers,
+            plots,
+            run_plots,
+            report_only=report_only,
+            datasets=dataset,
+            estimators=estimator,
         )
         typer.echo(written["md"].read_text(), nl=False)
         typer.echo(f"table: {written['md']} (.tex, .csv)")

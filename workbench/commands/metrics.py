@@ -15,7 +15,9 @@ ALIGNMENTS = ("se3", "sim3", "se2", "none")
 RefOption = Annotated[Path, typer.Option("--ref", help="reference trajectory (TUM)")]
 EstOption = Annotated[Path, typer.Option("--est", help="estimated trajectory (TUM)")]
 AlignOption = Annotated[str, typer.Option("--align", help="alignment: se3, sim3, se2 or none")]
-MaxDiffOption = Annotated[float, typer.Option("--max-diff", help="max time difference when pairing stamps [s]")]
+MaxDiffOption = Annotated[
+    float, typer.Option("--max-diff", help="max time difference when pairing stamps [s]")
+]
 
 
 def _check_align(align: str) -> None:
@@ -24,10 +26,14 @@ def _check_align(align: str) -> None:
 
 
 def register(app: typer.Typer) -> None:
-    metrics_app = typer.Typer(help="Evaluate TUM trajectory files (prints JSON).", no_args_is_help=True)
+    metrics_app = typer.Typer(
+        help="Evaluate TUM trajectory files (prints JSON).", no_args_is_help=True
+    )
 
     @metrics_app.command("ate")
-    def ate_command(ref: RefOption, est: EstOption, align: AlignOption = "se3", max_diff: MaxDiffOption = 0.01) -> None:
+    def ate_command(
+        ref: RefOption, est: EstOption, align: AlignOption = "se3", max_diff: MaxDiffOption = 0.01
+    ) -> None:
         """Absolute trajectory error (translation RMSE after alignment), as evo_ape."""
         from workbench.metrics.ate import ate_report
         from workbench.run_folder import dump_json
@@ -40,8 +46,12 @@ def register(app: typer.Typer) -> None:
     def rpe_command(
         ref: RefOption,
         est: EstOption,
-        delta: Annotated[float, typer.Option("--delta", help="offset between compared poses")] = 1.0,
-        unit: Annotated[str, typer.Option("--unit", help="unit of --delta: frames or m")] = "frames",
+        delta: Annotated[
+            float, typer.Option("--delta", help="offset between compared poses")
+        ] = 1.0,
+        unit: Annotated[
+            str, typer.Option("--unit", help="unit of --delta: frames or m")
+        ] = "frames",
         align: AlignOption = "none",
         max_diff: MaxDiffOption = 0.01,
     ) -> None:
@@ -52,7 +62,9 @@ def register(app: typer.Typer) -> None:
         _check_align(align)
         if unit not in ("frames", "m"):
             raise InputError(f"--unit must be frames or m, got '{unit}'")
-        report = rpe_report(read_tum(ref), read_tum(est), delta=delta, unit=unit, align=align, max_diff_s=max_diff)
+        report = rpe_report(
+            read_tum(ref), read_tum(est), delta=delta, unit=unit, align=align, max_diff_s=max_diff
+        )
         typer.echo(dump_json(report), nl=False)
 
     app.add_typer(metrics_app, name="metrics")

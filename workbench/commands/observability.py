@@ -5,7 +5,7 @@ matrices over the last few segments."""
 
 from __future__ import annotations
 
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -20,8 +20,10 @@ def register(app: typer.Typer) -> None:
     def observability_command(
         dataset: Annotated[str, typer.Argument(help="dataset name, e.g. sim:aghili-rover")],
         set_: Annotated[
-            Optional[list[str]],
-            typer.Option("--set", help="anchors=N (3), step_s=S (10), landmarks=K (3), window=W segments (3)"),
+            list[str] | None,
+            typer.Option(
+                "--set", help="anchors=N (3), step_s=S (10), landmarks=K (3), window=W segments (3)"
+            ),
         ] = None,
         seed: Annotated[int, typer.Option("--seed")] = 0,
     ) -> None:
@@ -32,7 +34,9 @@ def register(app: typer.Typer) -> None:
         options = parse_assignments(set_ or [], "--set")
         unknown = set(options) - set(KEYS)
         if unknown:
-            raise InputError(f"observability --set: unknown keys {sorted(unknown)} (known: {', '.join(KEYS)})")
+            raise InputError(
+                f"observability --set: unknown keys {sorted(unknown)} (known: {', '.join(KEYS)})"
+            )
         try:
             anchors_count = int(options.get("anchors", 3))
             step_s = float(options.get("step_s", 10.0))
@@ -41,7 +45,9 @@ def register(app: typer.Typer) -> None:
         except ValueError as error:
             raise InputError(f"observability --set: {error}") from None
         if anchors_count < 1 or step_s <= 0 or landmark_count < 0 or window < 1:
-            raise InputError("observability --set: need anchors >= 1, step_s > 0, landmarks >= 0, window >= 1")
+            raise InputError(
+                "observability --set: need anchors >= 1, step_s > 0, landmarks >= 0, window >= 1"
+            )
         sequence = load_dataset(dataset, seed)
         truth = None if sequence.ground_truth is None else sequence.ground_truth.pose
         if truth is None or sequence.dimension != 3:
@@ -51,7 +57,14 @@ def register(app: typer.Typer) -> None:
         anchors = sequence.known_landmarks.positions[:anchors_count]
         others = sequence.known_landmarks.positions[anchors_count:]
         reports = observability_along_trajectory(
-            truth.t, truth.rotation_matrices(), truth.positions, anchors, others, step_s, landmark_count, window
+            truth.t,
+            truth.rotation_matrices(),
+            truth.positions,
+            anchors,
+            others,
+            step_s,
+            landmark_count,
+            window,
         )
         typer.echo(
             f"anchors={anchors_count}, landmarks={landmark_count}, state size {reports[0].segment.size}; "
@@ -64,7 +77,11 @@ def register(app: typer.Typer) -> None:
         for report in reports:
             segment = report.segment
             collinear = "-" if segment.anchors_collinear is None else str(segment.anchors_collinear)
-            pi_sv = "-" if segment.pi_smallest_singular_value is None else f"{segment.pi_smallest_singular_value:.3e}"
+            pi_sv = (
+                "-"
+                if segment.pi_smallest_singular_value is None
+                else f"{segment.pi_smallest_singular_value:.3e}"
+            )
             total, total_sv = _rank_cells(report.total)
             stripped, stripped_sv = _rank_cells(report.stripped)
             typer.echo(

@@ -20,6 +20,14 @@ from workbench.metrics.state_errors import NeesSeries, nees_series
 from workbench.metrics.summary import compute_metrics
 
 __all__ = [
-    "AveragedNees", "NeesSeries", "ate_report", "averaged_nees", "chi2_interval", "compute_metrics",
-    "kitti_segment_errors", "nees", "nees_series", "rpe_report",
+    "AveragedNees",
+    "NeesSeries",
+    "ate_report",
+    "averaged_nees",
+    "chi2_interval",
+    "compute_metrics",
+    "kitti_segment_errors",
+    "nees",
+    "nees_series",
+    "rpe_report",
 ]

@@ -43,7 +43,7 @@ class Alignment:
     scale: float = 1.0
 
     @staticmethod
-    def identity() -> "Alignment":
+    def identity() -> Alignment:
         return Alignment("none", np.eye(3), np.zeros(3), 1.0)
 
     def as_dict(self) -> dict[str, object]:
@@ -56,7 +56,9 @@ class Alignment:
         }
 
 
-def umeyama(source: np.ndarray, target: np.ndarray, with_scale: bool = False, allow_degenerate: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+def umeyama(
+    source: np.ndarray, target: np.ndarray, with_scale: bool = False, allow_degenerate: bool = False
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Umeyama's least-squares similarity from ``source`` to ``target`` points.
 
     Umeyama, "Least-squares estimation of transformation parameters between two point
@@ -82,7 +84,9 @@ def umeyama(source: np.ndarray, target: np.ndarray, with_scale: bool = False, al
     source = np.asarray(source, dtype=float)
     target = np.asarray(target, dtype=float)
     if source.shape != target.shape or source.ndim != 2 or len(source) == 0:
-        raise InputError(f"alignment needs two equally long point lists, got {source.shape} and {target.shape}")
+        raise InputError(
+            f"alignment needs two equally long point lists, got {source.shape} and {target.shape}"
+        )
     count, dim = source.shape
     mean_source = source.mean(axis=0)
     mean_target = target.mean(axis=0)
@@ -115,7 +119,9 @@ def _spatial_positions(trajectory: Trajectory) -> np.ndarray:
     return np.column_stack([trajectory.positions, np.zeros(len(trajectory))])
 
 
-def estimate_alignment(reference: Trajectory, estimate: Trajectory, kind: str, allow_degenerate: bool = False) -> Alignment:
+def estimate_alignment(
+    reference: Trajectory, estimate: Trajectory, kind: str, allow_degenerate: bool = False
+) -> Alignment:
     """The alignment of ``kind`` that maps the estimate's positions onto the reference's.
 
     ``reference`` and ``estimate`` must already be paired pose for pose (equal length).
@@ -134,7 +140,10 @@ def estimate_alignment(reference: Trajectory, estimate: Trajectory, kind: str, a
         rotation[:2, :2] = rotation2
         return Alignment("se2", rotation, np.array([translation2[0], translation2[1], 0.0]), 1.0)
     rotation, translation, scale = umeyama(
-        _spatial_positions(estimate), _spatial_positions(reference), kind == "sim3", allow_degenerate
+        _spatial_positions(estimate),
+        _spatial_positions(reference),
+        kind == "sim3",
+        allow_degenerate,
     )
     return Alignment(kind, rotation, translation, scale)
 
@@ -158,7 +167,9 @@ def apply_alignment(trajectory: Trajectory, alignment: Alignment) -> Trajectory:
     positions = alignment.scale * spatial.positions @ alignment.rotation.T + alignment.translation
     matrices = np.einsum("ij,njk->nik", alignment.rotation, spatial.rotation_matrices())
     covariances = None if alignment.kind == "sim3" else spatial.covariances
-    return Trajectory(spatial.t, positions, quat_wxyz_from_matrix(matrices).reshape(-1, 4), covariances)
+    return Trajectory(
+        spatial.t, positions, quat_wxyz_from_matrix(matrices).reshape(-1, 4), covariances
+    )
 
 
 def lift_to_3d(trajectory: Trajectory) -> Trajectory:

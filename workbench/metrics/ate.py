@@ -15,7 +15,13 @@ import numpy as np
 
 from datasets.errors import InputError
 from datasets.trajectory import Trajectory
-from workbench.metrics.alignment import ALIGNMENTS, Alignment, apply_alignment, estimate_alignment, lift_to_3d
+from workbench.metrics.alignment import (
+    ALIGNMENTS,
+    Alignment,
+    apply_alignment,
+    estimate_alignment,
+    lift_to_3d,
+)
 from workbench.metrics.timestamps import DEFAULT_MAX_DIFF_S, associate
 
 
@@ -62,7 +68,11 @@ def ate_errors(
     """
     alignment = estimate_alignment(reference, estimate, align, allow_degenerate)
     aligned = apply_alignment(estimate, alignment)
-    ref_positions = reference.positions if aligned.dimension == reference.dimension else lift_to_3d(reference).positions
+    ref_positions = (
+        reference.positions
+        if aligned.dimension == reference.dimension
+        else lift_to_3d(reference).positions
+    )
     return np.linalg.norm(aligned.positions - ref_positions, axis=1), alignment, aligned
 
 

@@ -66,13 +66,17 @@ def nees(errors: np.ndarray, covariances: np.ndarray) -> np.ndarray:
     for index in rows:
         # Step by step, so that one singular covariance spoils only its own value.
         try:
-            result[index] = float(errors[index] @ np.linalg.solve(covariances[index], errors[index]))
+            result[index] = float(
+                errors[index] @ np.linalg.solve(covariances[index], errors[index])
+            )
         except np.linalg.LinAlgError:
             continue
     return result
 
 
-def inside_fraction(values: np.ndarray, dof: int | np.ndarray, confidence: float = CONFIDENCE) -> float | None:
+def inside_fraction(
+    values: np.ndarray, dof: int | np.ndarray, confidence: float = CONFIDENCE
+) -> float | None:
     """Fraction of single-run NEES/NIS values inside their two-sided chi-square interval.
 
     ``dof`` may be one number or one per value. NaN values count as outside. None when
@@ -88,7 +92,9 @@ def inside_fraction(values: np.ndarray, dof: int | np.ndarray, confidence: float
     return float(np.mean((values >= low) & (values <= high)))
 
 
-def below_fraction(values: np.ndarray, dof: int | np.ndarray, confidence: float = CONFIDENCE) -> float | None:
+def below_fraction(
+    values: np.ndarray, dof: int | np.ndarray, confidence: float = CONFIDENCE
+) -> float | None:
     """Fraction of values at or below the one-sided bound ``chi2.ppf(confidence, dof)``.
 
     Guerreiro et al., "Globally Asymptotically Stable Sensor-Based SLAM", eq. (11): a NIS
@@ -99,7 +105,9 @@ def below_fraction(values: np.ndarray, dof: int | np.ndarray, confidence: float 
     values = np.asarray(values, dtype=float)
     if values.size == 0:
         return None
-    return float(np.mean(values <= chi2_upper(np.broadcast_to(np.asarray(dof), values.shape), confidence)))
+    return float(
+        np.mean(values <= chi2_upper(np.broadcast_to(np.asarray(dof), values.shape), confidence))
+    )
 
 
 @dataclass(frozen=True)
@@ -133,7 +141,9 @@ def averaged_nees(nees_runs: np.ndarray, dof: int, confidence: float = CONFIDENC
     mean = np.mean(nees_runs, axis=0)
     lower, upper = chi2_interval(dof, runs, confidence)
     fraction = float(np.mean((mean >= lower) & (mean <= upper))) if mean.size else float("nan")
-    return AveragedNees(mean=mean, lower=lower, upper=upper, inside_fraction=fraction, runs=runs, dof=dof)
+    return AveragedNees(
+        mean=mean, lower=lower, upper=upper, inside_fraction=fraction, runs=runs, dof=dof
+    )
 
 
 def pose_errors(estimate: Trajectory, truth: Trajectory) -> np.ndarray:
@@ -159,4 +169,3 @@ def pose_errors(estimate: Trajectory, truth: Trajectory) -> np.ndarray:
         return np.column_stack([body_difference, heading])
     relative = np.einsum("nji,njk->nik", rotations_est, truth.rotation_matrices())
     return np.column_stack([so3_log(relative).reshape(-1, 3), body_difference])
-

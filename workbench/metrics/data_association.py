@@ -35,7 +35,9 @@ from workbench.metrics.timestamps import EXACT_TOLERANCE_S
 LOOP_CLOSURE_EVENT = "loop_closure"
 
 
-def true_ids_of_records(diagnostics: Diagnostics, scan_ids: tuple[tuple[float, np.ndarray], ...]) -> np.ndarray:
+def true_ids_of_records(
+    diagnostics: Diagnostics, scan_ids: tuple[tuple[float, np.ndarray], ...]
+) -> np.ndarray:
     """True landmark id of every association record, shape (A,); -1 where unknown (no scan
     at the record's time, or an index beyond that scan's measurements)."""
     record_t = np.asarray(diagnostics.assoc_t, dtype=float)
@@ -45,7 +47,11 @@ def true_ids_of_records(diagnostics: Diagnostics, scan_ids: tuple[tuple[float, n
     scan_times = np.array([float(t) for t, _ in scan_ids])
     order = np.argsort(scan_times, kind="stable")
     sorted_times = scan_times[order]
-    position = np.clip(np.searchsorted(sorted_times, record_t - EXACT_TOLERANCE_S, side="left"), 0, len(sorted_times) - 1)
+    position = np.clip(
+        np.searchsorted(sorted_times, record_t - EXACT_TOLERANCE_S, side="left"),
+        0,
+        len(sorted_times) - 1,
+    )
     matched = np.abs(sorted_times[position] - record_t) <= EXACT_TOLERANCE_S
     for record, (found, scan_position) in enumerate(zip(matched, position)):
         if not found:
@@ -68,7 +74,9 @@ def majority_mapping(map_ids: np.ndarray, true_ids: np.ndarray) -> dict[int, int
     mapping: dict[int, int] = {}
     if not np.any(usable):
         return mapping
-    pairs, counts = np.unique(np.column_stack([map_ids[usable], true_ids[usable]]), axis=0, return_counts=True)
+    pairs, counts = np.unique(
+        np.column_stack([map_ids[usable], true_ids[usable]]), axis=0, return_counts=True
+    )
     # np.unique sorts by map id then true id, so the first maximum is the smallest true id.
     for map_id in np.unique(pairs[:, 0]):
         rows = np.flatnonzero(pairs[:, 0] == map_id)
@@ -83,7 +91,9 @@ def landmark_id_mapping(diagnostics: Diagnostics, ground_truth: GroundTruth) -> 
     (e.g. an anchor the estimator was given, or a source that passes true ids through
     without recording associations) maps to itself when the true map has that id.
     """
-    mapping = majority_mapping(diagnostics.assoc_landmark_id, true_ids_of_records(diagnostics, ground_truth.scan_ids))
+    mapping = majority_mapping(
+        diagnostics.assoc_landmark_id, true_ids_of_records(diagnostics, ground_truth.scan_ids)
+    )
     if ground_truth.landmarks is not None:
         # Identity only fills gaps: it never overrides a majority decision.
         for true_id in np.asarray(ground_truth.landmarks.ids, dtype=int):
@@ -115,7 +125,9 @@ class AssociationScore:
     recall: float | None
 
 
-def score_associations(diagnostics: Diagnostics, scan_ids: tuple[tuple[float, np.ndarray], ...]) -> AssociationScore:
+def score_associations(
+    diagnostics: Diagnostics, scan_ids: tuple[tuple[float, np.ndarray], ...]
+) -> AssociationScore:
     """Precision and recall of the association decisions against the true ids."""
     true_ids = true_ids_of_records(diagnostics, scan_ids)
     known = true_ids != -1
@@ -135,10 +147,19 @@ def score_associations(diagnostics: Diagnostics, scan_ids: tuple[tuple[float, np
         earliest_for_true[true_id] = min(earliest_for_true.get(true_id, np.inf), first)
 
     associated = (map_ids != -1) & ~is_new
-    correct = associated & np.array([mapping.get(int(m), -2) == int(t) for m, t in zip(map_ids, true_ids)], dtype=bool)
-    seen_before = np.array([earliest_for_true.get(int(t), np.inf) < time for t, time in zip(true_ids, times)], dtype=bool)
+    correct = associated & np.array(
+        [mapping.get(int(m), -2) == int(t) for m, t in zip(map_ids, true_ids)], dtype=bool
+    )
+    seen_before = np.array(
+        [earliest_for_true.get(int(t), np.inf) < time for t, time in zip(true_ids, times)],
+        dtype=bool,
+    )
     positives = seen_before | correct
-    n_associated, n_correct, n_positive = int(np.sum(associated)), int(np.sum(correct)), int(np.sum(positives))
+    n_associated, n_correct, n_positive = (
+        int(np.sum(associated)),
+        int(np.sum(correct)),
+        int(np.sum(positives)),
+    )
     return AssociationScore(
         records=int(len(true_ids)),
         associations=n_associated,
@@ -173,7 +194,11 @@ def score_loop_closures(events: tuple[Event, ...], mapping: dict[int, int]) -> L
     """Score ``loop_closure`` events (details ``pairs=[[kept_id, removed_id], ...]``)."""
     closures = [event for event in events if event.kind == LOOP_CLOSURE_EVENT]
     pairs = [pair for event in closures for pair in event.details.get("pairs", [])]
-    scored = [(mapping[int(kept)], mapping[int(removed)]) for kept, removed in pairs if int(kept) in mapping and int(removed) in mapping]
+    scored = [
+        (mapping[int(kept)], mapping[int(removed)])
+        for kept, removed in pairs
+        if int(kept) in mapping and int(removed) in mapping
+    ]
     correct = sum(1 for kept, removed in scored if kept == removed)
     return LoopClosureScore(
         events=len(closures),

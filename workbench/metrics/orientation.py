@@ -47,7 +47,11 @@ def orientation_error_rad(estimated_wxyz: np.ndarray, reference_wxyz: np.ndarray
     return 2.0 * np.arctan2(np.linalg.norm(error[..., 1:], axis=-1), np.abs(error[..., 0]))
 
 
-def planar_orientation_error_rad(estimated_heading: np.ndarray, reference_heading: np.ndarray) -> np.ndarray:
+def planar_orientation_error_rad(
+    estimated_heading: np.ndarray, reference_heading: np.ndarray
+) -> np.ndarray:
     """The planar case of eq. (43): ``|wrap(theta_ref - theta_est)|`` [rad] in [0, pi]."""
-    difference = np.asarray(reference_heading, dtype=float) - np.asarray(estimated_heading, dtype=float)
+    difference = np.asarray(reference_heading, dtype=float) - np.asarray(
+        estimated_heading, dtype=float
+    )
     return np.abs(np.asarray(wrap_angle(difference), dtype=float))

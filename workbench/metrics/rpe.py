@@ -88,7 +88,9 @@ def rotation_angles(rotations: np.ndarray) -> np.ndarray:
     return np.arctan2(0.5 * np.linalg.norm(skew, axis=1), 0.5 * (trace - 1.0))
 
 
-def relative_errors(reference: np.ndarray, estimate: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def relative_errors(
+    reference: np.ndarray, estimate: np.ndarray, pairs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """RPE of index pairs on homogeneous poses (N, 4, 4).
 
     Returns:
@@ -122,7 +124,9 @@ def rpe_errors(
     else:
         pairs = pairs_by_distance(estimate.positions, float(delta))
     if len(pairs) == 0:
-        raise InputError(f"RPE delta = {delta:g} {unit} gives no pose pair among {len(estimate)} poses; try a smaller delta")
+        raise InputError(
+            f"RPE delta = {delta:g} {unit} gives no pose pair among {len(estimate)} poses; try a smaller delta"
+        )
     trans, rot = relative_errors(reference.homogeneous(), estimate.homogeneous(), pairs)
     return pairs, trans, np.rad2deg(rot)
 
@@ -154,13 +158,22 @@ def rpe_report(
     report.update({f"trans_{name}_m": value for name, value in error_statistics(trans).items()})
     report.update({f"rot_{name}_deg": value for name, value in error_statistics(rot_deg).items()})
     report.update(
-        {"pairs": int(len(pairs)), "delta": float(delta), "unit": unit, "align": align, "max_diff_s": float(max_diff_s)}
+        {
+            "pairs": int(len(pairs)),
+            "delta": float(delta),
+            "unit": unit,
+            "align": align,
+            "max_diff_s": float(max_diff_s),
+        }
     )
     return report
 
 
 def kitti_segment_errors(
-    reference: Trajectory, estimate: Trajectory, lengths_m: tuple[float, ...] = KITTI_LENGTHS_M, step: int = 10
+    reference: Trajectory,
+    estimate: Trajectory,
+    lengths_m: tuple[float, ...] = KITTI_LENGTHS_M,
+    step: int = 10,
 ) -> dict[str, float | int | None]:
     """KITTI odometry segment metric of already paired trajectories.
 
@@ -175,7 +188,9 @@ def kitti_segment_errors(
         than the shortest length.
     """
     reference, estimate = lift_to_3d(reference), lift_to_3d(estimate)
-    distances = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(reference.positions, axis=0), axis=1))])
+    distances = np.concatenate(
+        [[0.0], np.cumsum(np.linalg.norm(np.diff(reference.positions, axis=0), axis=1))]
+    )
     starts = np.arange(0, len(reference), step)
     first_parts, last_parts, length_parts = [], [], []
     for length in lengths_m:

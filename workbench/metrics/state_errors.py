@@ -46,14 +46,18 @@ class NeesSeries:
     dof: np.ndarray
 
 
-def truth_pose_at(ground_truth: GroundTruth, times: np.ndarray) -> tuple[Trajectory, np.ndarray] | None:
+def truth_pose_at(
+    ground_truth: GroundTruth, times: np.ndarray
+) -> tuple[Trajectory, np.ndarray] | None:
     """True pose at ``times`` and the validity mask, or None without a true trajectory."""
     if ground_truth.pose is None or len(ground_truth.pose) == 0:
         return None
     return trajectory_at(ground_truth.pose, times)
 
 
-def pose_error_series(pose: Trajectory, ground_truth: GroundTruth) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def pose_error_series(
+    pose: Trajectory, ground_truth: GroundTruth
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(times, pose errors (K, dof), valid mask over the estimate's poses), or None when the
     truth has no pose of the same dimension."""
     found = truth_pose_at(ground_truth, pose.t)
@@ -71,7 +75,9 @@ def _true_block(name: BlockName, frame: Frame, ground_truth: GroundTruth) -> Sta
     return ground_truth.history.block(name)
 
 
-def block_error_series(name: BlockName, block: StateBlock, ground_truth: GroundTruth) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def block_error_series(
+    name: BlockName, block: StateBlock, ground_truth: GroundTruth
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(times, errors (K, k), valid mask) of a vector block, or None without a true one."""
     truth = _true_block(name, block.frame, ground_truth)
     if truth is None or len(truth.t) == 0 or truth.values.shape[1] != block.values.shape[1]:
@@ -80,7 +86,9 @@ def block_error_series(name: BlockName, block: StateBlock, ground_truth: GroundT
     return block.t[valid], true_values - block.values[valid], valid
 
 
-def true_landmarks_in_frame(snapshot: LandmarkMap, true_ids: np.ndarray, ground_truth: GroundTruth) -> tuple[np.ndarray, np.ndarray]:
+def true_landmarks_in_frame(
+    snapshot: LandmarkMap, true_ids: np.ndarray, ground_truth: GroundTruth
+) -> tuple[np.ndarray, np.ndarray]:
     """True positions of ``true_ids`` in the snapshot's frame.
 
     Returns (positions (V, d), valid mask over ``true_ids``). A body-frame snapshot needs the
@@ -107,7 +115,9 @@ def true_landmarks_in_frame(snapshot: LandmarkMap, true_ids: np.ndarray, ground_
     return (world - pose.positions[0]) @ rotation, valid  # p = R^T (rho - r), row-wise
 
 
-def landmark_errors(snapshot: LandmarkMap, mapping: dict[int, int], ground_truth: GroundTruth) -> tuple[np.ndarray, np.ndarray]:
+def landmark_errors(
+    snapshot: LandmarkMap, mapping: dict[int, int], ground_truth: GroundTruth
+) -> tuple[np.ndarray, np.ndarray]:
     """Errors (truth - estimate) of the snapshot's mapped landmarks.
 
     Returns (errors (V, d), valid mask over the snapshot's landmarks).
@@ -121,7 +131,9 @@ def landmark_errors(snapshot: LandmarkMap, mapping: dict[int, int], ground_truth
     return positions - snapshot.positions[valid], valid
 
 
-def landmark_nees_series(snapshots: tuple[LandmarkMap, ...], mapping: dict[int, int], ground_truth: GroundTruth) -> NeesSeries | None:
+def landmark_nees_series(
+    snapshots: tuple[LandmarkMap, ...], mapping: dict[int, int], ground_truth: GroundTruth
+) -> NeesSeries | None:
     """Per-landmark NEES over all snapshots with covariances (d dof each), or None."""
     times, values, dofs = [], [], []
     for snapshot in snapshots:
@@ -131,7 +143,9 @@ def landmark_nees_series(snapshots: tuple[LandmarkMap, ...], mapping: dict[int, 
         if not np.any(valid):
             continue
         # A static world map (t None) gets NaN times: it has no place on a time axis.
-        times.append(np.full(int(np.sum(valid)), np.nan if snapshot.t is None else float(snapshot.t)))
+        times.append(
+            np.full(int(np.sum(valid)), np.nan if snapshot.t is None else float(snapshot.t))
+        )
         values.append(nees(errors, snapshot.covariances[valid]))
         dofs.append(np.full(int(np.sum(valid)), snapshot.dimension, dtype=int))
     if not values:
@@ -143,7 +157,9 @@ def _series(t: np.ndarray, errors: np.ndarray, covariances: np.ndarray) -> NeesS
     return NeesSeries(t, nees(errors, covariances), np.full(len(t), errors.shape[1], dtype=int))
 
 
-def nees_series(history: StateHistory, ground_truth: GroundTruth, mapping: dict[int, int] | None = None) -> dict[str, NeesSeries]:
+def nees_series(
+    history: StateHistory, ground_truth: GroundTruth, mapping: dict[int, int] | None = None
+) -> dict[str, NeesSeries]:
     """NEES per step of every block that has covariances and a truth to compare with.
 
     Args:

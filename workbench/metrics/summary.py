@@ -57,7 +57,12 @@ from workbench.metrics.data_association import (
 )
 from workbench.metrics.orientation import orientation_error_rad, planar_orientation_error_rad
 from workbench.metrics.rpe import kitti_segment_errors, rpe_errors
-from workbench.metrics.state_errors import landmark_errors, landmark_nees_series, nees_series, truth_pose_at
+from workbench.metrics.state_errors import (
+    landmark_errors,
+    landmark_nees_series,
+    nees_series,
+    truth_pose_at,
+)
 from workbench.metrics.timestamps import vectors_at
 
 Metrics = dict[str, float | int | None]
@@ -163,7 +168,12 @@ def _holdout_rmse(pose: Trajectory, ground_truth: GroundTruth) -> float | None:
     return _rmse(np.linalg.norm(difference, axis=1))
 
 
-def consistency_metrics(history: StateHistory | None, ground_truth: GroundTruth | None, mapping: dict[int, int], final_map: LandmarkMap | None = None) -> Metrics:
+def consistency_metrics(
+    history: StateHistory | None,
+    ground_truth: GroundTruth | None,
+    mapping: dict[int, int],
+    final_map: LandmarkMap | None = None,
+) -> Metrics:
     """Mean NEES of every block, and the fraction of pose NEES inside the 95% interval."""
     metrics: Metrics = dict.fromkeys(CONSISTENCY_KEYS)
     if history is None or ground_truth is None:
@@ -178,7 +188,9 @@ def consistency_metrics(history: StateHistory | None, ground_truth: GroundTruth 
         if key in metrics:
             metrics[key] = _finite_mean(values.nees)
     if "pose" in series:
-        metrics["nees_pose_inside_fraction"] = _number(inside_fraction(series["pose"].nees, series["pose"].dof))
+        metrics["nees_pose_inside_fraction"] = _number(
+            inside_fraction(series["pose"].nees, series["pose"].dof)
+        )
     return metrics
 
 
@@ -188,7 +200,12 @@ def nis_metrics(estimate: Estimate) -> Metrics:
     values = np.asarray(diagnostics.nis, dtype=float)
     dofs = np.asarray(diagnostics.nis_dof, dtype=int)
     if values.size == 0:
-        return {"nis_mean": None, "nis_dof": None, "nis_inside_fraction": None, "nis_below_95_fraction": None}
+        return {
+            "nis_mean": None,
+            "nis_dof": None,
+            "nis_inside_fraction": None,
+            "nis_below_95_fraction": None,
+        }
     unique = np.unique(dofs)
     return {
         "nis_mean": _finite_mean(values),
@@ -198,7 +215,9 @@ def nis_metrics(estimate: Estimate) -> Metrics:
     }
 
 
-def map_metrics(final_map: LandmarkMap | None, ground_truth: GroundTruth | None, mapping: dict[int, int]) -> Metrics:
+def map_metrics(
+    final_map: LandmarkMap | None, ground_truth: GroundTruth | None, mapping: dict[int, int]
+) -> Metrics:
     """RMSE [m] of the final map's mapped landmarks against the truth, and their count."""
     if final_map is None or ground_truth is None or ground_truth.landmarks is None:
         return {"landmark_rmse_m": None, "landmarks_mapped": None}
@@ -222,8 +241,12 @@ def association_metrics(estimate: Estimate, ground_truth: GroundTruth | None) ->
     score = score_associations(diagnostics, ground_truth.scan_ids)
     metrics["association_precision"] = _number(score.precision)
     metrics["association_recall"] = _number(score.recall)
-    mapping = majority_mapping(diagnostics.assoc_landmark_id, true_ids_of_records(diagnostics, ground_truth.scan_ids))
-    metrics["loop_closure_precision"] = _number(score_loop_closures(diagnostics.events, mapping).precision)
+    mapping = majority_mapping(
+        diagnostics.assoc_landmark_id, true_ids_of_records(diagnostics, ground_truth.scan_ids)
+    )
+    metrics["loop_closure_precision"] = _number(
+        score_loop_closures(diagnostics.events, mapping).precision
+    )
     return metrics
 
 
@@ -232,8 +255,17 @@ def cost_metrics(estimate: Estimate) -> Metrics:
     timing = estimate.timing
     if timing is None or len(timing.seconds) == 0:
         pose = estimate.causal.pose
-        steps = len(pose) if pose is not None else max((len(b.t) for b in estimate.causal.blocks.values()), default=0)
-        return {"steps": int(steps), "time_per_step_ms_median": None, "time_per_step_ms_p99": None, "time_total_s": None}
+        steps = (
+            len(pose)
+            if pose is not None
+            else max((len(b.t) for b in estimate.causal.blocks.values()), default=0)
+        )
+        return {
+            "steps": int(steps),
+            "time_per_step_ms_median": None,
+            "time_per_step_ms_p99": None,
+            "time_total_s": None,
+        }
     milliseconds = 1000.0 * np.asarray(timing.seconds, dtype=float)
     return {
         "steps": int(len(milliseconds)),
@@ -254,9 +286,16 @@ def compute_metrics(estimate: Estimate, sequence: Sequence) -> Metrics:
     metrics.update(accuracy_metrics(estimate.causal.pose, ground_truth))
     metrics.update(consistency_metrics(estimate.causal, ground_truth, mapping, estimate.landmarks))
     smoothed = estimate.smoothed
-    smoothed_accuracy = accuracy_metrics(smoothed.pose if smoothed is not None else None, ground_truth)
+    smoothed_accuracy = accuracy_metrics(
+        smoothed.pose if smoothed is not None else None, ground_truth
+    )
     smoothed_consistency = consistency_metrics(smoothed, ground_truth, mapping)
-    metrics.update({smoothed_key(key): value for key, value in {**smoothed_accuracy, **smoothed_consistency}.items()})
+    metrics.update(
+        {
+            smoothed_key(key): value
+            for key, value in {**smoothed_accuracy, **smoothed_consistency}.items()
+        }
+    )
     metrics.update(nis_metrics(estimate))
     metrics.update(map_metrics(estimate.landmarks, ground_truth, mapping))
     metrics.update(association_metrics(estimate, ground_truth))

@@ -28,7 +28,10 @@ EXACT_TOLERANCE_S = 1e-6
 
 
 def matching_time_indices(
-    stamps_1: np.ndarray, stamps_2: np.ndarray, max_diff_s: float = DEFAULT_MAX_DIFF_S, offset_2_s: float = 0.0
+    stamps_1: np.ndarray,
+    stamps_2: np.ndarray,
+    max_diff_s: float = DEFAULT_MAX_DIFF_S,
+    offset_2_s: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the best-matching stamps, exactly as evo's ``matching_time_indices``.
 
@@ -101,7 +104,9 @@ def _span(times: np.ndarray) -> str:
     return f"{len(times)} poses, t {times[0]:.6f}..{times[-1]:.6f} s"
 
 
-def _brackets(sample_times: np.ndarray, query_times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _brackets(
+    sample_times: np.ndarray, query_times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """For each query: the samples around it, the interpolation weight, and a validity mask.
 
     Returns (lower index, upper index, weight of the upper sample in [0, 1], valid); a query
@@ -118,7 +123,9 @@ def _brackets(sample_times: np.ndarray, query_times: np.ndarray) -> tuple[np.nda
     after = np.clip(np.searchsorted(sample_times, query_times), 0, count - 1)
     before = np.clip(after - 1, 0, count - 1)
     nearest = np.where(
-        np.abs(sample_times[before] - query_times) < np.abs(sample_times[after] - query_times), before, after
+        np.abs(sample_times[before] - query_times) < np.abs(sample_times[after] - query_times),
+        before,
+        after,
     )
     exact = np.abs(sample_times[nearest] - query_times) <= EXACT_TOLERANCE_S
 
@@ -126,7 +133,9 @@ def _brackets(sample_times: np.ndarray, query_times: np.ndarray) -> tuple[np.nda
     lower = np.maximum(upper - 1, 0)
     gap = sample_times[upper] - sample_times[lower]
     safe_gap = np.where(gap > 0, gap, 1.0)
-    weight = np.where(gap > 0, np.clip((query_times - sample_times[lower]) / safe_gap, 0.0, 1.0), 0.0)
+    weight = np.where(
+        gap > 0, np.clip((query_times - sample_times[lower]) / safe_gap, 0.0, 1.0), 0.0
+    )
     inside = (query_times >= sample_times[0]) & (query_times <= sample_times[-1])
 
     lower = np.where(exact, nearest, lower)
@@ -135,7 +144,9 @@ def _brackets(sample_times: np.ndarray, query_times: np.ndarray) -> tuple[np.nda
     return lower, upper, weight, exact | inside
 
 
-def vectors_at(sample_times: np.ndarray, values: np.ndarray, query_times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def vectors_at(
+    sample_times: np.ndarray, values: np.ndarray, query_times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Vector samples at ``query_times``: exact match within 1e-6 s, else linear interpolation.
 
     Args:
