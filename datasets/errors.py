@@ -8,3 +8,10 @@ time. The CLI prints it as one line and exits with status 2, without a traceback
 class InputError(ValueError):
     """Bad or unusable input: a malformed file, a missing topic, NaN samples, time going
     backwards, an unknown name, a sensor an estimator needs but a dataset lacks."""
+
+
+def one_line(error: BaseException) -> str:
+    """``"Type: first line of the message"``: how a failed run or probe is reported in a
+    table note or a progress line."""
+    text = str(error).strip().splitlines()
+    return f"{type(error).__name__}: {text[0] if text else ''}".rstrip(": ")

@@ -227,3 +227,18 @@ def test_console_script_reports_usage_error_without_traceback():
     assert completed.returncode == 2
     assert completed.stderr.strip().startswith("error: ")
     assert "Traceback" not in completed.stderr
+
+
+def test_run_writes_png_figures_by_default_and_pdf_on_request(tmp_path, capsys):
+    base = ["run", "dead-reckoning", "sim:circle", "--data", "duration_s=2"]
+    assert run_cli(base + ["--out", str(tmp_path / "default")], capsys)[0] == 0
+    default = {path.suffix for path in (tmp_path / "default" / "plots").iterdir()}
+    assert default == {".png"}
+    both = base + ["--out", str(tmp_path / "both"), "--plot-format", "pdf,png"]
+    assert run_cli(both, capsys)[0] == 0
+    names = {path.name for path in (tmp_path / "both" / "plots").iterdir()}
+    assert "trajectory.png" in names and "trajectory.pdf" in names
+    status, _, err = run_cli(
+        base + ["--out", str(tmp_path / "bad"), "--plot-format", "jpg"], capsys
+    )
+    assert status == 2 and "--plot-format" in err and "png, pdf, svg" in err

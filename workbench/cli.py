@@ -18,6 +18,7 @@ from typer.exceptions import TyperException
 
 from datasets.errors import InputError
 from datasets.options import parse_assignments
+from workbench.plot_formats import parse_plot_formats
 from workbench.registry import DATASETS, ESTIMATORS
 
 app = typer.Typer(
@@ -117,6 +118,9 @@ def run_command(
     set_: SetOption = None,
     data: DataOption = None,
     plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write figures")] = True,
+    plot_format: Annotated[
+        str, typer.Option("--plot-format", help="figure formats, comma-separated: png, pdf, svg")
+    ] = "png",
 ) -> None:
     """Run one estimator on one dataset and write the run folder."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -124,6 +128,7 @@ def run_command(
     from workbench.run_folder import dump_json, write_run_folder
     from workbench.runner import RunRequest, execute
 
+    plot_formats = parse_plot_formats(plot_format)  # checked before the run, not after
     request = RunRequest(
         estimator=estimator,
         dataset=dataset,
@@ -142,7 +147,7 @@ def run_command(
     ) as progress:
         task = progress.add_task(f"{estimator} on {dataset}", total=None)
         result = execute(request, on_step=lambda t: progress.update(task, completed=t))
-    metrics = write_run_folder(result, out, plots=plots)
+    metrics = write_run_folder(result, out, plot_formats if plots else ())
     shown = {key: value for key, value in metrics.items() if not isinstance(value, dict)}
     typer.echo(dump_json(shown), nl=False)
     typer.echo(f"run folder: {out}")

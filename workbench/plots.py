@@ -1,5 +1,6 @@
 """Figures of one run, in pairs: ``*_on_axes`` draws on given axes, the wrapper makes and
-saves the figure (GTSAM python's style). PNG and PDF, Agg backend, no screen needed."""
+saves the figure (GTSAM python's style). PNG by default (PDF, SVG on request), Agg backend,
+no screen needed."""
 
 from __future__ import annotations
 
@@ -16,15 +17,25 @@ from datasets.estimate import Estimate  # noqa: E402
 from datasets.sequence import Sequence  # noqa: E402
 from datasets.state import BlockName, StateBlock  # noqa: E402
 from datasets.trajectory import Trajectory  # noqa: E402
+from workbench.plot_formats import DEFAULT_PLOT_FORMATS  # noqa: E402
+
+NamedFigure = tuple[str, plt.Figure]
+"""A figure and the file name (without suffix) it is saved under."""
 
 
-def save_figure(figure: plt.Figure, path_without_suffix: Path) -> list[Path]:
-    """Save as PNG and PDF; close the figure."""
+def save_figure(
+    figure: plt.Figure, path_without_suffix: Path, formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS
+) -> list[Path]:
+    """Lay out once, save in each of ``formats``, close; returns the files written.
+
+    ``tight_layout`` once rather than ``bbox_inches="tight"``, which draws every file twice.
+    """
     path_without_suffix.parent.mkdir(parents=True, exist_ok=True)
+    figure.tight_layout()
     written = []
-    for suffix in (".png", ".pdf"):
-        path = path_without_suffix.with_suffix(suffix)
-        figure.savefig(path, dpi=130, bbox_inches="tight")
+    for suffix in formats:
+        path = path_without_suffix.with_suffix(f".{suffix}")
+        figure.savefig(path, dpi=120)
         written.append(path)
     plt.close(figure)
     return written
@@ -112,10 +123,14 @@ _BLOCK_UNITS = {
 
 
 def write_run_plots(
-    estimate: Estimate, sequence: Sequence, out_dir: Path, title: str
+    estimate: Estimate,
+    sequence: Sequence,
+    out_dir: Path,
+    title: str,
+    formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS,
 ) -> list[Path]:
     """The standard figures of a run folder: trajectory, state blocks with 3 sigma, NIS,
-    landmark count. Returns the files written."""
+    landmark count, in each of ``formats``. Returns the files written."""
     written: list[Path] = []
     truth = sequence.ground_truth
     trajectories: dict[str, Trajectory] = {}
@@ -134,7 +149,7 @@ def write_run_plots(
         figure, axes = plt.subplots(figsize=(7, 6))
         trajectory_on_axes(axes, trajectories, landmarks)
         axes.set_title(title)
-        written += save_figure(figure, out_dir / "trajectory")
+        written += save_figure(figure, out_dir / "trajectory", formats)
     for name, block in estimate.causal.blocks.items():
         truth_block = None
         if truth is not None:
@@ -153,13 +168,13 @@ def write_run_plots(
         )
         block_on_axes(axes[:, 0], block, truth_block, _BLOCK_UNITS.get(name, ""))
         axes[0, 0].set_title(f"{title}: {name} ({block.frame} frame)")
-        written += save_figure(figure, out_dir / f"{name}")
+        written += save_figure(figure, out_dir / f"{name}", formats)
     diagnostics = estimate.diagnostics
     if len(diagnostics.nis):
         figure, axes = plt.subplots(figsize=(7, 3.5))
         nis_on_axes(axes, diagnostics.nis_t, diagnostics.nis, diagnostics.nis_dof)
         axes.set_title(title)
-        written += save_figure(figure, out_dir / "nis")
+        written += save_figure(figure, out_dir / "nis", formats)
     if len(diagnostics.landmark_count):
         figure, axes = plt.subplots(figsize=(7, 3))
         axes.step(diagnostics.landmark_count_t, diagnostics.landmark_count, where="post")
@@ -167,5 +182,5 @@ def write_run_plots(
         axes.set_ylabel("landmarks in state")
         axes.grid(True, alpha=0.3)
         axes.set_title(title)
-        written += save_figure(figure, out_dir / "landmark_count")
+        written += save_figure(figure, out_dir / "landmark_count", formats)
     return written

@@ -1,6 +1,6 @@
 """Figures of a whole sweep (``workbench bench``), per dataset, comparing the estimators.
 
-``OUT/plots/<dataset>/`` receives, as PNG and PDF:
+``OUT/plots/<dataset>/`` receives, as PNG (and PDF or SVG on request, ``--plot-format``):
     ``trajectories``        top view of each estimator's trajectory (first seed; causal, and
                             smoothed for smoothers) against the truth, one panel each;
     ``pose_errors``         per-axis pose errors of the first seed with their +/-3 sigma
@@ -28,11 +28,17 @@ import numpy as np  # noqa: E402
 
 from datasets.trajectory_io import read_tum  # noqa: E402
 from workbench.monte_carlo import AveragedSeries, ErrorSeries  # noqa: E402
-from workbench.plots import nis_on_axes, trajectory_on_axes  # noqa: E402
+from workbench.plot_formats import DEFAULT_PLOT_FORMATS  # noqa: E402
+from workbench.plots import (  # noqa: E402
+    NamedFigure,
+    nis_on_axes,
+    save_figure,
+    trajectory_on_axes,
+)
 from workbench.registry import estimator_entry  # noqa: E402
 from workbench.results import PairResults, RunSeries, collect  # noqa: E402
 from workbench.suites import DatasetSpec  # noqa: E402
-from workbench.sweep import Plan  # noqa: E402
+from workbench.sweep.plan import Plan  # noqa: E402
 
 NEES_BLOCK_TITLES = {
     "pose": "pose",
@@ -53,20 +59,6 @@ def _line_style(pair: PairResults) -> str:
 
 
 # ---------------------------------------------------------------------------- drawing
-
-
-def save_figure(figure: plt.Figure, path_without_suffix: Path) -> list[Path]:
-    """Lay out once, save as PNG and PDF, close. (``bbox_inches="tight"`` would draw each
-    file twice; with many axes per figure that doubles the report's plotting time.)"""
-    path_without_suffix.parent.mkdir(parents=True, exist_ok=True)
-    figure.tight_layout()
-    written = []
-    for suffix in (".png", ".pdf"):
-        path = path_without_suffix.with_suffix(suffix)
-        figure.savefig(path, dpi=110)
-        written.append(path)
-    plt.close(figure)
-    return written
 
 
 def _log_y(axes: plt.Axes) -> None:
@@ -187,14 +179,14 @@ def time_vs_landmarks_on_axes(axes: plt.Axes, runs: dict[str, tuple[list[RunSeri
 # ---------------------------------------------------------------------------- figures
 
 
-def _trajectory_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
+def _trajectory_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
     panels = [
         pair
         for pair in pairs
         if pair.finished and (pair.finished[0].folder / "estimate.tum").is_file()
     ]
     if not panels:
-        return []
+        return None
     columns = min(3, len(panels))
     rows = int(np.ceil(len(panels) / columns))
     figure, axes = plt.subplots(rows, columns, figsize=(4.5 * columns, 4.2 * rows), squeeze=False)
@@ -211,16 +203,16 @@ def _trajectory_figure(pairs: list[PairResults], title: str, out: Path) -> list[
     for ax in axes.ravel()[len(panels) :]:
         ax.set_visible(False)
     figure.suptitle(title)
-    return save_figure(figure, out / "trajectories")
+    return "trajectories", figure
 
 
-def _error_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
+def _error_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
     """Pose errors of the first seed, one row per estimator: attitude and position, each
     component with its +/-3 sigma envelope (shaded)."""
     found = [(pair, pair.first_errors().get("pose")) for pair in pairs]
     found = [(pair, series) for pair, series in found if series is not None]
     if not found:
-        return []
+        return None
     figure, axes = plt.subplots(
         len(found), 2, figsize=(10, 2.2 * len(found) + 0.6), sharex=True, squeeze=False
     )
@@ -239,15 +231,15 @@ def _error_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]
     figure.suptitle(
         f"{title}: pose errors (truth - estimate) with +/-3 sigma, first seed", fontsize=10
     )
-    return save_figure(figure, out / "pose_errors")
+    return "pose_errors", figure
 
 
-def _anees_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
+def _anees_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
     blocks = [
         block for block in NEES_BLOCK_TITLES if any(block in pair.averaged_nees for pair in pairs)
     ]
     if not blocks:
-        return []
+        return None
     figure, axes = plt.subplots(len(blocks), 1, figsize=(9, 2.8 * len(blocks)), squeeze=False)
     for ax, block in zip(axes[:, 0], blocks):
         curves = {
@@ -257,13 +249,13 @@ def _anees_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]
         }
         anees_on_axes(ax, curves)
         ax.set_title(f"{title}: averaged NEES, {NEES_BLOCK_TITLES[block]}, 95% band", fontsize=9)
-    return save_figure(figure, out / "anees")
+    return "anees", figure
 
 
-def _nis_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
+def _nis_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
     panels = [pair for pair in pairs if pair.series and len(pair.series[0].nis)]
     if not panels:
-        return []
+        return None
     figure, axes = plt.subplots(
         len(panels), 1, figsize=(7.5, 2.6 * len(panels)), sharex=True, squeeze=False
     )
@@ -273,46 +265,48 @@ def _nis_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
         ax.set_title(
             f"{title}: {pair.estimator.title} NIS, seed {pair.finished[0].seed}", fontsize=9
         )
-    return save_figure(figure, out / "nis")
+    return "nis", figure
 
 
-def _landmark_count_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
+def _landmark_count_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
     counts = {
         pair.estimator.title: (pair.series[0], _line_style(pair))
         for pair in pairs
         if pair.series and len(pair.series[0].count)
     }
     if not counts:
-        return []
+        return None
     figure, axes = plt.subplots(figsize=(9, 3.2))
     landmark_count_on_axes(axes, counts)
     axes.set_title(f"{title}: landmarks in the state (first seed)", fontsize=9)
-    return save_figure(figure, out / "landmark_count")
+    return "landmark_count", figure
 
 
-def _time_figure(pairs: list[PairResults], title: str, out: Path) -> list[Path]:
+def _time_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
     runs = {
         pair.estimator.title: (list(pair.series), _line_style(pair))
         for pair in pairs
         if pair.series and any(len(s.timing_t) for s in pair.series)
     }
     if not runs:
-        return []
+        return None
     figure, axes = plt.subplots(figsize=(9, 3.6))
     time_vs_landmarks_on_axes(axes, runs)
     axes.set_title(
         f"{title}: time per step vs landmarks (filters solid, smoothers dashed)", fontsize=9
     )
-    return save_figure(figure, out / "time_vs_landmarks")
+    return "time_vs_landmarks", figure
 
 
-def write_dataset_plots(plan: Plan, dataset: DatasetSpec) -> list[Path]:
-    """Every figure of one dataset into ``OUT/plots/<dataset>/`` (a worker task)."""
+def write_dataset_plots(
+    plan: Plan, dataset: DatasetSpec, formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS
+) -> list[Path]:
+    """Every figure of one dataset into ``OUT/plots/<dataset>/`` in each of ``formats``
+    (a worker task)."""
     pairs = [pair for pair in collect(plan) if pair.dataset == dataset and pair.finished]
     out = plan.out / "plots" / dataset.folder_name
-    title = dataset.title
     written: list[Path] = []
-    for figure_writer in (
+    for figure_builder in (
         _trajectory_figure,
         _error_figure,
         _anees_figure,
@@ -320,5 +314,8 @@ def write_dataset_plots(plan: Plan, dataset: DatasetSpec) -> list[Path]:
         _landmark_count_figure,
         _time_figure,
     ):
-        written += figure_writer(pairs, title, out)
+        built = figure_builder(pairs, dataset.title)
+        if built is not None:
+            name, figure = built
+            written += save_figure(figure, out / name, formats)
     return written

@@ -21,7 +21,7 @@ from workbench.monte_carlo import (
     load_run_nees,
 )
 from workbench.suites import DatasetSpec, EstimatorSpec
-from workbench.sweep import ERROR_FILE, METRICS_FILE, Cell, Plan
+from workbench.sweep.plan import ERROR_FILE, METRICS_FILE, Cell, Plan
 
 
 @dataclass(frozen=True)

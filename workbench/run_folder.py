@@ -9,7 +9,7 @@ Layout (all directly in the folder)::
     estimate.npz           covariances, state blocks, final map, diagnostics, timing
     events.json            discrete events (loop closures, skips) and the estimator's notes
     metrics.json           flat metrics with units, plus provenance (git revision, seed, versions)
-    plots/*.png, *.pdf     figures (see ``workbench.plots``)
+    plots/*.png            figures (see ``workbench.plots``; PDF/SVG with --plot-format)
 
 ``metrics.json`` is written last: its presence marks a finished run (Monte Carlo resume
 relies on that).
@@ -142,8 +142,11 @@ def run_provenance(result: RunResult) -> dict[str, Any]:
     }
 
 
-def write_run_folder(result: RunResult, out_dir: Path, plots: bool = True) -> dict[str, Any]:
-    """Write the run folder for ``result`` and return its metrics dictionary."""
+def write_run_folder(
+    result: RunResult, out_dir: Path, plot_formats: tuple[str, ...] = ("png",)
+) -> dict[str, Any]:
+    """Write the run folder for ``result`` (figures in each of ``plot_formats``, none when
+    empty) and return its metrics dictionary."""
     from workbench.metrics.summary import compute_metrics
 
     out_dir = Path(out_dir)
@@ -178,7 +181,7 @@ def write_run_folder(result: RunResult, out_dir: Path, plots: bool = True) -> di
     write_atomic(out_dir / "events.json", dump_json(events))
     metrics = compute_metrics(estimate, result.sequence)
     metrics.update(run_provenance(result))
-    if plots:
+    if plot_formats:
         from workbench.plots import write_run_plots
 
         write_run_plots(
@@ -186,6 +189,7 @@ def write_run_folder(result: RunResult, out_dir: Path, plots: bool = True) -> di
             result.sequence,
             out_dir / "plots",
             title=f"{request.estimator} on {result.sequence.name}",
+            formats=plot_formats,
         )
     write_atomic(out_dir / METRICS_FILE, dump_json(metrics))
     return metrics

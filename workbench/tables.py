@@ -31,7 +31,7 @@ import numpy as np
 
 from datasets.trajectory_io import write_atomic
 from workbench.results import PairResults, collect
-from workbench.sweep import Plan
+from workbench.sweep.plan import Plan
 
 
 @dataclass(frozen=True)

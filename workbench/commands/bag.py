@@ -29,6 +29,7 @@ import typer
 
 from datasets.errors import InputError
 from datasets.options import build_model, parse_assignments
+from workbench.plot_formats import parse_plot_formats
 
 TABLE_COLUMNS = (
     ("ate_rmse_m", "ATE RMSE [m]"),
@@ -269,6 +270,7 @@ def bag_command(
     plots: bool,
     quiet: bool = False,
     settings_overrides: list[str] | None = None,
+    plot_formats: tuple[str, ...] = ("png",),
 ) -> list[dict]:
     """The whole command (module docstring); returns the table rows."""
     from datasets.bags.reader import open_bag
@@ -349,7 +351,7 @@ def bag_command(
                         task, completed=t - start
                     ),
                 )
-            metrics = write_run_folder(result, out / name, plots=plots)
+            metrics = write_run_folder(result, out / name, plot_formats if plots else ())
             row.update({key: metrics.get(key) for key, _ in TABLE_COLUMNS})
         except InputError as error:
             row["status"] = _status(f"not run: {error}")
@@ -404,6 +406,10 @@ def register(app: typer.Typer) -> None:
         plots: Annotated[
             bool, typer.Option("--plots/--no-plots", help="write figures in run folders")
         ] = True,
+        plot_format: Annotated[
+            str,
+            typer.Option("--plot-format", help="figure formats, comma-separated: png, pdf, svg"),
+        ] = "png",
     ) -> None:
         """Lidar bag end to end: KISS-ICP + corners, every estimator, a comparison table."""
         rows = bag_command(
@@ -416,6 +422,7 @@ def register(app: typer.Typer) -> None:
             data or [],
             plots,
             settings_overrides=set_ or [],
+            plot_formats=parse_plot_formats(plot_format),
         )
         typer.echo((out / "table.md").read_text(), nl=False)
         typer.echo(f"frontend: {out / 'frontend'}; {len(rows) - 1} estimator run(s) in {out}")

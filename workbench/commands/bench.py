@@ -16,6 +16,7 @@ from typing import Annotated
 import typer
 
 from datasets.errors import InputError
+from workbench.plot_formats import parse_plot_formats
 from workbench.suites import DEFAULT_SUITE, SUITES, get_suite, restrict
 
 
@@ -31,11 +32,12 @@ def bench(
     report_only: bool = False,
     datasets: list[str] | None = None,
     estimators: list[str] | None = None,
+    plot_formats: tuple[str, ...] = ("png",),
 ) -> dict[str, Path]:
-    """Run the suite and write tables and plots; returns the written table paths and the
-    plots folder (key ``plots``). ``report_only``: run nothing, report the runs on disk
-    (unfinished ones show as missing). ``datasets`` / ``estimators``: only these of the
-    suite (names or labels)."""
+    """Run the suite and write tables and plots (in each of ``plot_formats``); returns the
+    written table paths and the plots folder (key ``plots``). ``report_only``: run nothing,
+    report the runs on disk (unfinished ones show as missing). ``datasets`` /
+    ``estimators``: only these of the suite (names or labels)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -45,7 +47,9 @@ def bench(
         TimeRemainingColumn,
     )
 
-    from workbench.sweep import make_backend, pending_cells, plan_sweep, run_sweep
+    from workbench.sweep import pending_cells, run_sweep
+    from workbench.sweep.backends import make_backend
+    from workbench.sweep.plan import plan_sweep
     from workbench.tables import write_tables
 
     suite = restrict(get_suite(suite_name), datasets, estimators)
@@ -89,14 +93,21 @@ def bench(
                     )
 
             planned = time.perf_counter()
-            summary = run_sweep(plan, backend, run_plots=run_plots, on_done=on_done, cells=pending)
+            summary = run_sweep(
+                plan,
+                backend,
+                run_plot_formats=plot_formats if run_plots else (),
+                on_done=on_done,
+                cells=pending,
+            )
         swept = time.perf_counter()
         written: dict[str, Path] = dict(write_tables(plan))
         if plots:
             from workbench.report_plots import write_dataset_plots
 
             futures = [
-                backend.submit(write_dataset_plots, plan, dataset) for dataset in plan.datasets
+                backend.submit(write_dataset_plots, plan, dataset, plot_formats)
+                for dataset in plan.datasets
             ]
             for future in futures:
                 future.result()
@@ -142,6 +153,10 @@ def register(app: typer.Typer) -> None:
             bool,
             typer.Option("--report-only", help="run nothing: table and plots of the runs on disk"),
         ] = False,
+        plot_format: Annotated[
+            str,
+            typer.Option("--plot-format", help="figure formats, comma-separated: png, pdf, svg"),
+        ] = "png",
         dataset: Annotated[
             list[str] | None,
             typer.Option("--dataset", help="only this dataset of the suite (repeatable)"),
@@ -166,6 +181,7 @@ def register(app: typer.Typer) -> None:
             report_only=report_only,
             datasets=dataset,
             estimators=estimator,
+            plot_formats=parse_plot_formats(plot_format),
         )
         typer.echo(written["md"].read_text(), nl=False)
         typer.echo(f"table: {written['md']} (.tex, .csv)")
