@@ -32,7 +32,7 @@ from gtsam.symbol_shorthand import L
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
-from datasets.estimate import Estimate, EstimateRecorder
+from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
 from datasets.measurements import (
     GpsFix,
     ImuSample,
@@ -490,7 +490,7 @@ class KeyframeSmoother:
             map_ids = self._associate(scan, points, covariances, pose, values)
         for index, (map_id, point, covariance) in enumerate(zip(map_ids, points, covariances)):
             if map_id == -2:  # ambiguous under JCBB: neither used nor a new landmark
-                self.recorder.association(scan.t, index, -1, False)
+                self.recorder.association(scan.t, index, -1, AssociationDecision.AMBIGUOUS)
                 continue
             landmark = self.landmarks.get(map_id) if map_id >= 0 else None
             is_new = landmark is None or not self._key_alive(landmark.key)
@@ -499,7 +499,9 @@ class KeyframeSmoother:
                     map_id = self.next_map_id
                     self.next_map_id += 1
                 if self.dimension == 3 and np.linalg.norm(point) < 1e-3:
-                    self.recorder.association(scan.t, index, -1, False)
+                    self.recorder.association(
+                        scan.t, index, -1, AssociationDecision.REJECTED, "at the sensor origin"
+                    )
                     continue
                 world = pose.transformFrom(point)
                 landmark = self._new_landmark(map_id, np.asarray(world, dtype=float), scan.t)
@@ -517,7 +519,8 @@ class KeyframeSmoother:
             landmark.observations += 1
             landmark.last_t = scan.t
             self.pending_times[landmark.key] = float(scan.t)
-            self.recorder.association(scan.t, index, map_id, is_new)
+            decision = AssociationDecision.NEW if is_new else AssociationDecision.MATCHED
+            self.recorder.association(scan.t, index, map_id, decision)
         self.recorder.landmark_count(
             scan.t, sum(1 for lm in self.landmarks.values() if self._key_alive(lm.key))
         )

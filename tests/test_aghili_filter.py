@@ -50,7 +50,7 @@ def test_bias_sign_and_initial_covariances_at_the_interface() -> None:
     f = AghiliFilter(AghiliConfig(), rover(0))
     assert np.all(np.diag(f.P)[6:15] > 0)  # velocity and biases: nonzero initial covariance
     f.b_g = np.array([1e-3, 0.0, 0.0])
-    f._stage_record()
+    f._record()
     estimate = f.estimate()
     np.testing.assert_allclose(estimate.causal.block("gyro_bias").values[-1], [-1e-3, 0.0, 0.0])
 

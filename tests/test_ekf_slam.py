@@ -16,7 +16,7 @@ from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import BlockName
 from filters.ekf_slam.boundary import world_to_right_jacobian
 from filters.ekf_slam.config import EkfSlamConfig
-from filters.ekf_slam.filter import EkfSlam, joseph_update
+from filters.ekf_slam.filter import EkfSlam
 from filters.ekf_slam.layout import VehicleLayout
 from filters.ekf_slam.motion import GyroNoise, VehicleMean, predict_gyro_cv, predict_odometry_2d
 from filters.ekf_slam.observation import initialise_landmark, predict_observations
@@ -163,20 +163,6 @@ def test_pose_error_conversion_matches_gtsam_local_coordinates_3d() -> None:
         delta = rng.normal(size=6) * 1e-5  # [dp (world), dphi (world, left)]
         truth = gtsam.Pose3(gtsam.Rot3(so3_exp(delta[3:]) @ rotation), position + delta[:3])
         np.testing.assert_allclose(estimate.localCoordinates(truth), jacobian @ delta, atol=1e-9)
-
-
-def test_joseph_expanded_form_equals_product_form_for_any_gain() -> None:
-    rng = np.random.default_rng(5)
-    n, p = 9, 4
-    a = rng.normal(size=(n, n))
-    P = a @ a.T + np.eye(n)
-    H = rng.normal(size=(p, n))
-    b = rng.normal(size=(p, p))
-    R = b @ b.T + np.eye(p)
-    S = H @ P @ H.T + R
-    for gain in (np.linalg.solve(S, H @ P).T, rng.normal(size=(n, p))):
-        product = (np.eye(n) - gain @ H) @ P @ (np.eye(n) - gain @ H).T + gain @ R @ gain.T
-        np.testing.assert_allclose(joseph_update(P, H @ P, S, gain), product, atol=1e-9)
 
 
 # ---------------------------------------------------------------- hand-made sequences

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets.estimate import EstimateRecorder
+from datasets.estimate import AssociationDecision, EstimateRecorder
 from datasets.state import GroundTruth, LandmarkMap, StateHistory
 from workbench.metrics.data_association import (
     landmark_id_mapping,
@@ -23,6 +23,12 @@ SCAN_IDS = (
 )
 
 
+def _decision(map_id: int, is_new: bool) -> AssociationDecision:
+    if is_new:
+        return AssociationDecision.NEW
+    return AssociationDecision.MATCHED if map_id >= 0 else AssociationDecision.REJECTED
+
+
 def _diagnostics():
     recorder = EstimateRecorder(dimension=3)
     log = [
@@ -32,7 +38,7 @@ def _diagnostics():
         (3.0, 0, -1, False),  # rejected
     ]  # fmt: skip
     for t, index, map_id, is_new in log:
-        recorder.association(t, index, map_id, is_new)
+        recorder.association(t, index, map_id, _decision(map_id, is_new))
     recorder.event(2.5, "loop_closure", pairs=[[102, 103]])
     recorder.event(2.8, "loop_closure", pairs=[[100, 101], [100, 999]])
     recorder.event(2.9, "skipped_scan")
@@ -66,7 +72,7 @@ def test_precision_and_recall_of_the_decisions() -> None:
 
 def test_an_associated_anchor_counts_as_a_positive() -> None:
     recorder = EstimateRecorder(dimension=3)
-    recorder.association(0.0, 0, 42, False)  # a known landmark: no creation record
+    recorder.association(0.0, 0, 42, AssociationDecision.MATCHED)  # known: no creation record
     score = score_associations(recorder.diagnostics(), ((0.0, np.array([42])),))
     assert (score.precision, score.recall) == (1.0, 1.0)
 

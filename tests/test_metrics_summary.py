@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from datasets.estimate import EstimateRecorder, StepTiming
+from datasets.estimate import AssociationDecision, EstimateRecorder, StepTiming
 from datasets.rotations import quat_wxyz_from_rotation, so3_exp
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, GroundTruth, LandmarkMap, StateBlock, StateHistory
@@ -89,7 +89,8 @@ def _estimate_3d(truth: GroundTruth):
         )
     for t, ids in truth.scan_ids:
         for index, true_id in enumerate(ids):
-            recorder.association(t, index, 100 + int(true_id), t == 0.0)
+            decision = AssociationDecision.NEW if t == 0.0 else AssociationDecision.MATCHED
+            recorder.association(t, index, 100 + int(true_id), decision)
     for value in (1.0, 2.0, 3.0, 30.0):
         recorder.nis(1.0, value, 2)
     recorder.event(5.0, "loop_closure", pairs=[[100, 101]])

@@ -21,9 +21,10 @@ Cycle per IMU sample (section 4.2): nominal quaternion by the exact exponential 
 and velocity by integrating (15) exactly for the interval-average bias-corrected IMU values
 (34) (trapezoid of the two samples bounding the interval), covariance by (41b) with the
 corrected closed-form Phi' (35) and Q' (36), so a step costs O(n). Per landmark scan:
-association (ids when the scan has them, else ``filters.association`` JCBB), one stacked
-update (40a)-(40c) with the Joseph form, then augmentation of new landmarks with their
-cross-covariance (section 4.3). The measurement noise R is estimated on line (section 4.4,
+association by the shared policy (``filters.association``: ids when the scan has them,
+else JCBB), one stacked block-sparse update (40a)-(40c) in the shared Kalman core
+(``filters.kalman``), then augmentation of new landmarks with their cross-covariance
+(section 4.3). The measurement noise R is estimated on line (section 4.4,
 eq. (42)) unless ``adaptive_noise=false``; by default from post-fit residuals, since the
 printed prior-residual form collapses when the initial R is wrong (``adaptive_noise``
 module; ``adaptive_residual=prior`` keeps it).
@@ -32,8 +33,8 @@ Bad input: a non-finite IMU sample or scan, or time going backwards, raises ``In
 before any state is touched (the state stays finite and usable). An empty scan is not an
 error: it is counted (``landmark_count`` recorded, no update).
 
-NIS is recorded once per scan for the stacked innovation of all updated landmarks
-(anchors and map landmarks), dof = 3 x landmarks.
+NIS: the stacked innovation of every scan update (anchors and map landmarks, dof = 3 x
+landmarks) and the NIS of each updated landmark (3 dof).
 """
 
 from __future__ import annotations
@@ -45,13 +46,16 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
+from datasets.estimator_options import AssociationOptions, RecordingOptions
 from datasets.measurements import ImuSample, LandmarkScan, Measurement, Sensor
 from datasets.rotations import skew
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
+from datasets.stream_clock import StreamClock
+from filters import kalman
 from filters.aghili import quaternion_jpl as quat
 from filters.aghili.adaptive_noise import SlidingWindowNoise
-from filters.aghili.measurement import predict, sensitivity
+from filters.aghili.measurement import predict, sparse_sensitivity
 from filters.aghili.observability import gauge_rotation_direction, variance_along
 from filters.aghili.process_noise import (
     noise_covariance,
@@ -69,13 +73,15 @@ from filters.aghili.transition import (
     lambda_matrices,
     vehicle_transition,
 )
+from filters.association import AssociationPolicy, Decision, ScanAssociation
 
 GRAVITY_M_S2 = 9.81
 """Magnitude of g in eq. (15) (``g = (0, 0, +9.81)`` world z-up, subtracted)."""
 
 
-class AghiliConfig(BaseModel):
-    """Options of the Aghili adaptive EKF SLAM (``--set key=value``)."""
+class AghiliConfig(AssociationOptions, RecordingOptions):
+    """Options of the Aghili adaptive EKF SLAM (``--set key=value``; association and snapshot
+    options: the shared vocabulary of ``datasets.estimator_options``)."""
 
     model_config = ConfigDict(extra="forbid")
     anchors: int = Field(
@@ -125,16 +131,6 @@ class AghiliConfig(BaseModel):
         ge=0,
         description="initial accelerometer bias std [m/s^2]; None: the dataset's noise spec, else 0.1",
     )
-    association: Literal["auto", "jcbb", "nearest"] = Field(
-        "auto",
-        description="'auto': ids when scans carry them, else JCBB; 'jcbb'/'nearest' ignore ids",
-    )
-    gate_probability: float = Field(
-        0.999, gt=0, lt=1, description="chi-square gate for association"
-    )
-    snapshot_interval_s: float = Field(
-        1.0, gt=0, description="landmark map snapshot period in the history [s]"
-    )
     max_gap_s: float = Field(1.0, gt=0, description="an IMU gap longer than this is an error [s]")
 
 
@@ -156,7 +152,8 @@ class AghiliFilter:
             )
         self.config = config
         self.name = sequence.name
-        self.recorder = EstimateRecorder(3)
+        self.recorder = EstimateRecorder(3, config.snapshot_interval_s)
+        self.policy = AssociationPolicy(config, 3)
         self.notes: list[str] = []
         noise = sequence.noise
         missing = [
@@ -261,22 +258,11 @@ class AghiliFilter:
         )
 
         self._last_imu: ImuSample | None = None
-        self._staged: tuple | None = None
-        self._last_snapshot_t = -np.inf
+        self.clock = StreamClock(self.name, self.t)
         self.counts = {"imu": 0, "scans": 0, "empty_scans": 0, "quaternion_resets": 0}
-        self._stage_record()
+        self._record()
 
     # ------------------------------------------------------------------ propagation
-    def _check_time(self, t: float, what: str) -> float:
-        if not np.isfinite(t):
-            raise InputError(f"{self.name}: non-finite {what} time stamp after t={self.t:.6f} s")
-        dt = t - self.t
-        if dt < 0.0:
-            raise InputError(
-                f"{self.name}: time goes backwards at {what} t={t:.6f} s (previous {self.t:.6f} s)"
-            )
-        return dt
-
     def _propagate(self, dt: float, gyro: np.ndarray, accel: np.ndarray) -> None:
         """Aghili eqs. (34), (39), (41a), (41b): propagate nominal state and covariance by dt [s].
 
@@ -303,13 +289,7 @@ class AghiliFilter:
                 omega_bar, a_bar, attitude, dt, *self.densities, lambdas=lambdas
             )
         # eq. (41b): the landmark-landmark block is untouched: O(n) per step
-        v = VEHICLE_DIM
-        P = self.P
-        P[:v, :v] = phi @ P[:v, :v] @ phi.T + q_vehicle
-        if P.shape[0] > v:
-            P[v:, :v] = P[v:, :v] @ phi.T
-            P[:v, v:] = P[v:, :v].T
-        P[:v, :v] = 0.5 * (P[:v, :v] + P[:v, :v].T)
+        kalman.propagate_vehicle(self.P, VEHICLE_DIM, phi, q_vehicle)
         self.t += dt
 
     def _imu(self, sample: ImuSample) -> None:
@@ -323,7 +303,7 @@ class AghiliFilter:
             raise InputError(
                 f"{self.name}: non-finite or malformed IMU sample at t={sample.t:.6f} s"
             )
-        dt = self._check_time(float(sample.t), "IMU")
+        dt = self.clock.advance(sample.t, "IMU")
         if dt > self.config.max_gap_s and self._last_imu is not None:
             raise InputError(
                 f"{self.name}: IMU gap of {dt:.3f} s at t={sample.t:.6f} s (max_gap_s={self.config.max_gap_s})"
@@ -337,7 +317,7 @@ class AghiliFilter:
         self._propagate(dt, gyro_mean, accel_mean)
         self._last_imu = sample
         self.counts["imu"] += 1
-        self._stage_record()
+        self._record()
 
     # ------------------------------------------------------------------ update
     def _measurement_noise(self, scan: LandmarkScan, count: int) -> np.ndarray:
@@ -357,51 +337,22 @@ class AghiliFilter:
         ].astype(int)
         return ids, positions, slots
 
-    def _associate(self, scan: LandmarkScan, R: np.ndarray) -> np.ndarray:
-        """Map id for each measured landmark (k,): existing id, -2 new landmark, -1 rejected."""
-        k = scan.count
+    def _associate(self, scan: LandmarkScan, R: np.ndarray) -> ScanAssociation:
+        """One decision per sighting against the anchors and the map (the shared policy)."""
+        points = np.asarray(scan.points, float)
         map_ids, positions, slots = self._map_targets()
-        known_ids = set(map_ids.tolist())
-        if scan.ids is not None and self.config.association == "auto":
-            result = np.empty(k, dtype=int)
-            seen: set[int] = set()
-            for j, raw in enumerate(np.asarray(scan.ids, dtype=int)):
-                landmark_id = int(raw)
-                if landmark_id in seen:
-                    result[j] = -1  # the same id twice in one scan: keep the first only
-                elif landmark_id in known_ids:
-                    result[j] = landmark_id
-                elif landmark_id in self.anchor_ids:
-                    result[
-                        j
-                    ] = -1  # an anchor not yet placed (first-observation mode handled earlier)
-                else:
-                    result[j] = -2
-                seen.add(landmark_id)
-            return result
-        from filters.association import associate_jcbb, associate_nearest_neighbour
-
-        if len(map_ids) == 0:
-            return np.full(k, -2, dtype=int)
-        attitude = quat.rotation_matrix(self.q)
-        predicted = predict(attitude, self.r, positions)
-        H = sensitivity(attitude, predicted, slots, self.P.shape[0])
-        predicted_cov = H @ self.P @ H.T
-        associate = (
-            associate_nearest_neighbour if self.config.association == "nearest" else associate_jcbb
-        )
-        outcome = associate(
-            np.asarray(scan.points, float),
-            R,
-            predicted,
-            predicted_cov,
-            gate_probability=self.config.gate_probability,
-        )
-        result = np.where(outcome.assignments >= 0, map_ids[np.maximum(outcome.assignments, 0)], -2)
-        result[
-            outcome.ambiguous
-        ] = -1  # compatible with something but not chosen: neither update nor add
-        return result
+        predictor = _MapPredictor(self, positions, slots)
+        mode = self.policy.mode(scan.ids, scan.t)
+        if mode != "ids":
+            return self.policy.by_geometry(points, R, len(map_ids), predictor, mode)
+        association = self.policy.by_ids(scan.ids, points, R, map_ids, predictor)
+        placed = set(map_ids.tolist())
+        waiting = [
+            j
+            for j in association.rows(Decision.NEW)
+            if int(scan.ids[j]) in self.anchor_ids and int(scan.ids[j]) not in placed
+        ]
+        return association.overrule(waiting, Decision.REJECTED, "anchor not placed yet")
 
     def _place_anchors(self, scan: LandmarkScan) -> None:
         """Section 2.1 alternative: anchors from their first (noisy) observation."""
@@ -444,7 +395,7 @@ class AghiliFilter:
             raise InputError(
                 f"{self.name}: landmark scan at t={scan.t:.6f} s has covariances of shape {covariances.shape}, need ({k}, 3, 3) finite"
             )
-        dt = self._check_time(float(scan.t), "landmark scan")
+        dt = self.clock.advance(scan.t, "landmark scan")
         if self._last_imu is not None:
             # zero-order hold of the last IMU sample up to the scan time
             self._propagate(
@@ -456,33 +407,29 @@ class AghiliFilter:
         if k == 0:
             self.counts["empty_scans"] += 1
             self.recorder.landmark_count(scan.t, len(self.landmark_ids))
-            self._stage_record()
+            self._record()
             return
         if self._anchors_pending:
             self._place_anchors(scan)
         R = self._measurement_noise(scan, k)
-        targets = self._associate(scan, R)
-        self._update(scan, points, R, targets)
-        new_rows = np.flatnonzero(targets == -2)
+        association = self._associate(scan, R)
         if self._anchors_pending:
-            new_rows = np.zeros(0, dtype=int)  # the map is not anchored yet: nothing to attach to
-        R_after = self._measurement_noise(scan, k)
-        created = {}
-        for j in new_rows:
-            landmark_id = (
-                int(scan.ids[j])
-                if (scan.ids is not None and self.config.association == "auto")
-                else self._new_id()
+            # the map is not anchored yet: nothing to attach a new landmark to
+            association = association.overrule(
+                association.rows(Decision.NEW), Decision.REJECTED, "map not anchored yet"
             )
-            self._augment(points[j], R_after[j], landmark_id)
-            created[j] = landmark_id
-        for j in range(k):
-            if j in created:
-                self.recorder.association(scan.t, j, created[j], True)
-            else:
-                self.recorder.association(
-                    scan.t, j, int(targets[j]) if targets[j] >= 0 else -1, False
-                )
+        self._update(scan, points, R, association)
+        R_after = self._measurement_noise(scan, k)
+        map_ids = self._map_targets()[0]
+        for j, decision in enumerate(association.decisions):
+            landmark_id = -1
+            if decision == Decision.NEW:
+                with_ids = scan.ids is not None and association.mode == "ids"
+                landmark_id = int(scan.ids[j]) if with_ids else self._new_id()
+                self._augment(points[j], R_after[j], landmark_id)
+            elif decision == Decision.MATCHED:
+                landmark_id = int(map_ids[association.candidates[j]])
+            self.recorder.association(scan.t, j, landmark_id, decision, association.reasons[j])
         self.recorder.landmark_count(scan.t, len(self.landmark_ids))
         if self.noise_window is not None:
             sigma = (
@@ -491,58 +438,43 @@ class AghiliFilter:
                 else np.sqrt(np.diag(R[0]))
             )
             self.recorder.extra("adaptive_R_sigma_m", np.r_[scan.t, sigma])
-        self._stage_record()
-        if scan.t - self._last_snapshot_t >= self.config.snapshot_interval_s:
+        self._record()
+        if self.recorder.snapshot_due(scan.t):
             self.recorder.landmarks(self._landmark_map(scan.t))
-            self._last_snapshot_t = scan.t
             if len(self.anchor_positions):
                 self.recorder.extra(
                     "gauge_yaw_variance_rad2", np.array([scan.t, self.gauge_yaw_variance()])
                 )
 
     def _update(
-        self, scan: LandmarkScan, points: np.ndarray, R: np.ndarray, targets: np.ndarray
+        self, scan: LandmarkScan, points: np.ndarray, R: np.ndarray, association: ScanAssociation
     ) -> None:
-        """Aghili eqs. (40a)-(40c) with the Joseph form, one stacked update per scan."""
-        rows = np.flatnonzero(targets >= 0)
+        """Aghili eqs. (40a)-(40c): one stacked block-sparse update per scan (the shared
+        Kalman core) of every matched sighting."""
+        rows = association.rows(Decision.MATCHED)
         if rows.size == 0:
             return
-        map_ids, positions, slots = self._map_targets()
-        where = {int(i): n for n, i in enumerate(map_ids)}
-        chosen = np.array([where[int(targets[j])] for j in rows])
+        _, positions, slots = self._map_targets()
+        chosen = association.candidates[rows]
         attitude = quat.rotation_matrix(self.q)
         predicted = predict(attitude, self.r, positions[chosen])
-        N = self.P.shape[0]
-        H = sensitivity(attitude, predicted, slots[chosen], N)
+        jacobian = sparse_sensitivity(attitude, predicted, slots[chosen])
         residual = (points[rows] - predicted).ravel()  # z - h(x^-)
-        HP = H @ self.P
-        predicted_cov = HP @ H.T
+        noise = R[rows]
         if self.noise_window is not None and self.noise_window.residual == "prior":
             # eq. (42) as printed: prior residuals with their H P^- H^T blocks, used at once
-            self.noise_window.add(residual.reshape(-1, 3), _diagonal_blocks(predicted_cov))
+            self.noise_window.add(residual.reshape(-1, 3), projected_blocks(jacobian, self.P))
             if self.noise_window.ready:
-                R = np.repeat(self.noise_window.estimate()[None], len(points), axis=0)
-        R_stacked = np.zeros((3 * len(rows), 3 * len(rows)))
-        for n, j in enumerate(rows):
-            R_stacked[3 * n : 3 * n + 3, 3 * n : 3 * n + 3] = R[j]
-        S = predicted_cov + R_stacked
-        S = 0.5 * (S + S.T)
-        try:
-            chol = np.linalg.cholesky(S)
-        except np.linalg.LinAlgError:
-            self.recorder.event(
-                scan.t, "update_skipped", reason="innovation covariance not positive definite"
-            )
+                noise = np.repeat(self.noise_window.estimate()[None], len(rows), axis=0)
+        groups = [np.arange(3 * n, 3 * n + 3) for n in range(len(rows))]
+        outcome = kalman.update(self.P, residual, jacobian, noise, groups)
+        if outcome.innovation is not None:
+            found = outcome.innovation
+            self.recorder.innovation(scan.t, found.nis, found.dof, found.group_nis, found.group_dof)
+        if outcome.correction is None:
+            self.recorder.event(scan.t, "update_refused", reason=outcome.refused)
             return
-        # K = P H^T S^-1 (eq. (40a)) via the Cholesky factor
-        K = np.linalg.solve(chol.T, np.linalg.solve(chol, HP)).T
-        whitened = np.linalg.solve(chol, residual)
-        self.recorder.nis(scan.t, float(whitened @ whitened), residual.size)
-        dx = K @ residual  # eq. (40b), with dq_v^- = 0 (the nominal is the prior)
-        # Joseph form (I - KH) P (I - KH)^T + K R K^T, associated as ((I-KH)P)(I-KH)^T: O(N^2 m)
-        left = self.P - K @ HP
-        P_new = left - (left @ H.T) @ K.T + K @ R_stacked @ K.T
-        self.P = 0.5 * (P_new + P_new.T)
+        dx = outcome.correction  # eq. (40b), with dq_v^- = 0 (the nominal is the prior)
         if float(dx[ATTITUDE] @ dx[ATTITUDE]) >= 1.0:
             self.counts["quaternion_resets"] += 1
             self.recorder.event(
@@ -558,8 +490,8 @@ class AghiliFilter:
         if self.noise_window is not None and self.noise_window.residual == "posterior":
             # eq. (42) on post-fit residuals e = z - h(x^+) ~ rho - H dx, with H P^+ H^T
             # (module docstring of adaptive_noise); the next scan uses the new estimate
-            posterior = (residual - H @ dx).reshape(-1, 3)
-            self.noise_window.add(posterior, _projected_blocks(H, self.P))
+            posterior = (residual - jacobian.times(dx)).reshape(-1, 3)
+            self.noise_window.add(posterior, projected_blocks(jacobian, self.P))
 
     def _augment(self, point: np.ndarray, R: np.ndarray, landmark_id: int) -> None:
         """Aghili section 4.3: add ``rho = Abar z + r`` with its cross-covariance.
@@ -568,18 +500,13 @@ class AghiliFilter:
         and the new diagonal block is ``J P J^T + Abar R Abar^T``.
         """
         attitude = quat.rotation_matrix(self.q)
-        N = self.P.shape[0]
-        J = np.zeros((3, N))
-        J[:, ATTITUDE] = -2.0 * attitude @ skew(point)
-        J[:, POSITION] = np.eye(3)
-        upsilon = J @ self.P  # (3, N)
-        corner = upsilon @ J.T + attitude @ R @ attitude.T
-        P_new = np.empty((N + 3, N + 3))
-        P_new[:N, :N] = self.P
-        P_new[N:, :N] = upsilon
-        P_new[:N, N:] = upsilon.T
-        P_new[N:, N:] = 0.5 * (corner + corner.T)
-        self.P = P_new
+        jacobian = kalman.SparseJacobian(
+            np.r_[
+                np.arange(ATTITUDE.start, ATTITUDE.stop), np.arange(POSITION.start, POSITION.stop)
+            ],
+            np.hstack([-2.0 * attitude @ skew(point), np.eye(3)]),
+        )
+        self.P = kalman.augment(self.P, jacobian, attitude @ R @ attitude.T)
         self.rho = np.vstack([self.rho, attitude @ point + self.r])
         self.slot_of[landmark_id] = len(self.landmark_ids)
         self.landmark_ids.append(landmark_id)
@@ -604,37 +531,20 @@ class AghiliFilter:
         J[3:6, 3:6] = attitude.T
         return J @ self.P[0:6, 0:6] @ J.T
 
-    def _stage_record(self) -> None:
-        """Stage the current posterior; an entry at the same time replaces the staged one."""
-        if self._staged is not None and self._staged[0] != self.t:
-            self._flush()
-        attitude = quat.rotation_matrix(self.q)
-        z_axis = np.array([0.0, 0.0, 1.0])
-        yaw_variance = 4.0 * z_axis @ attitude @ self.P[ATTITUDE, ATTITUDE] @ attitude.T @ z_axis
-        self._staged = (
-            self.t,
-            self.r.copy(),
-            quat.to_interface_wxyz(self.q),
-            self.interface_pose_covariance(),
-            self.v.copy(),
-            self.P[VELOCITY, VELOCITY].copy(),
-            -self.b_g,  # interface: measured = true + bias
-            self.P[GYRO_BIAS, GYRO_BIAS].copy(),
-            -self.b_a,
-            self.P[ACCEL_BIAS, ACCEL_BIAS].copy(),
-            yaw_variance,
+    def _record(self) -> None:
+        """Record the current posterior at ``self.t`` (the recorder keeps one per time)."""
+        t = self.t
+        self.recorder.pose(
+            t, self.r, quat.to_interface_wxyz(self.q), self.interface_pose_covariance()
         )
-
-    def _flush(self) -> None:
-        if self._staged is None:
-            return
-        t, r, wxyz, pose_cov, v, v_cov, bg, bg_cov, ba, ba_cov, yaw_variance = self._staged
-        self.recorder.pose(t, r, wxyz, pose_cov)
-        self.recorder.block(BlockName.VELOCITY, t, v, v_cov, Frame.WORLD)
-        self.recorder.block(BlockName.GYRO_BIAS, t, bg, bg_cov, Frame.BODY)
-        self.recorder.block(BlockName.ACCEL_BIAS, t, ba, ba_cov, Frame.BODY)
-        self.recorder.extra("yaw_variance_rad2", np.array([t, yaw_variance]))
-        self._staged = None
+        self.recorder.block(BlockName.VELOCITY, t, self.v, self.P[VELOCITY, VELOCITY], Frame.WORLD)
+        # interface: measured = true + bias, so the paper's biases flip sign
+        self.recorder.block(
+            BlockName.GYRO_BIAS, t, -self.b_g, self.P[GYRO_BIAS, GYRO_BIAS], Frame.BODY
+        )
+        self.recorder.block(
+            BlockName.ACCEL_BIAS, t, -self.b_a, self.P[ACCEL_BIAS, ACCEL_BIAS], Frame.BODY
+        )
 
     def _landmark_map(self, t: float | None) -> LandmarkMap:
         """Estimated landmarks (anchors excluded: they are fixed, not estimated), world frame."""
@@ -660,16 +570,13 @@ class AghiliFilter:
             self._scan(measurement)
 
     def estimate(self) -> Estimate:
-        """Finish: flush the last posterior, final map snapshot and map with covariances."""
-        self._flush()
+        """Finish: the final map snapshot and the map with covariances."""
         final_map = self._landmark_map(self.t)
-        if self._last_snapshot_t != self.t:
-            self.recorder.landmarks(final_map)
-            self._last_snapshot_t = self.t
+        self.recorder.final_snapshot(final_map)
         notes = list(self.notes)
         notes.append(
             f"anchors: {len(self.anchor_positions)} ({self.config.anchor_source}), not part of the landmark map; "
-            "NIS is per scan (stacked innovation, dof = 3 x updated landmarks)"
+            "scan NIS: stacked innovation of anchors and landmarks, dof = 3 x updated landmarks"
         )
         if self.counts["empty_scans"]:
             notes.append(f"{self.counts['empty_scans']} empty landmark scans (no update)")
@@ -680,23 +587,35 @@ class AghiliFilter:
         return self.recorder.build(landmarks=final_map, notes=tuple(notes))
 
 
-def _diagonal_blocks(matrix: np.ndarray) -> np.ndarray:
-    """The 3 x 3 diagonal blocks (m, 3, 3) of a (3m, 3m) matrix."""
-    count = matrix.shape[0] // 3
-    return matrix.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
+def projected_blocks(jacobian: kalman.SparseJacobian, covariance: np.ndarray) -> np.ndarray:
+    """Diagonal 3 x 3 blocks of ``H P H^T`` (m, 3, 3) (the eq. (42) window's ``H P H^T``
+    per landmark), from the non-zero columns of H only."""
+    columns, values = jacobian.columns, jacobian.values
+    full = values @ covariance[np.ix_(columns, columns)] @ values.T
+    count = full.shape[0] // 3
+    return full.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
 
 
-def _projected_blocks(H: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Diagonal 3 x 3 blocks of ``H P H^T`` (m, 3, 3) without forming the (3m, 3m) product.
+class _MapPredictor:
+    """The association ``Predictor`` of the Aghili map: anchors and estimated landmarks seen
+    from the nominal pose (eqs. (7b), (10)), with ``H P H^T`` from the error covariance."""
 
-    Each landmark row block of eq. (10) touches only the attitude, position and its own
-    landmark columns, so a block costs O(1) instead of O(N^2).
-    """
-    count = H.shape[0] // 3
-    blocks = np.empty((count, 3, 3))
-    for i in range(count):
-        rows = H[3 * i : 3 * i + 3]
-        columns = np.flatnonzero(np.any(rows != 0.0, axis=0))
-        local = rows[:, columns]
-        blocks[i] = local @ P[np.ix_(columns, columns)] @ local.T
-    return blocks
+    def __init__(self, aghili: AghiliFilter, positions: np.ndarray, slots: np.ndarray) -> None:
+        self.attitude = quat.rotation_matrix(aghili.q)
+        self.position = aghili.r
+        self.covariance = aghili.P
+        self.positions = positions
+        self.slots = slots
+
+    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        predicted = predict(self.attitude, self.position, self.positions[indices])
+        jacobian = sparse_sensitivity(self.attitude, predicted, self.slots[indices])
+        columns, values = jacobian.columns, jacobian.values
+        joint = values @ self.covariance[np.ix_(columns, columns)] @ values.T
+        return predicted, 0.5 * (joint + joint.T)
+
+    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        predicted, joint = self.joint(indices)
+        count = len(predicted)
+        blocks = joint.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
+        return predicted, blocks

@@ -15,6 +15,7 @@ import numpy as np
 
 from datasets.rotations import skew
 from filters.aghili.transition import ATTITUDE, POSITION, VEHICLE_DIM
+from filters.kalman import SparseJacobian
 
 
 def predict(attitude: np.ndarray, position: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
@@ -28,29 +29,45 @@ def predict(attitude: np.ndarray, position: np.ndarray, landmarks: np.ndarray) -
     return (np.asarray(landmarks, dtype=float) - position) @ attitude
 
 
-def sensitivity(
-    attitude: np.ndarray, predicted: np.ndarray, state_slots: np.ndarray, state_dim: int
-) -> np.ndarray:
-    """Aghili eq. (10): stacked ``H`` (3k, state_dim).
+def sparse_sensitivity(
+    attitude: np.ndarray, predicted: np.ndarray, state_slots: np.ndarray
+) -> SparseJacobian:
+    """Aghili eq. (10): stacked ``H`` (3k rows) by its non-zero columns.
 
     Row block i: ``[2 [p_i x], -Abar^T, 0, 0, 0, ..., Abar^T (at landmark i's slot), ...]``;
-    anchors (known landmarks, ``state_slots[i] < 0``) have no landmark column.
+    anchors (known landmarks, ``state_slots[i] < 0``) have no landmark column. The
+    non-zero columns are the attitude and position errors and the observed landmarks.
 
     Args:
         attitude: ``Abar`` (3, 3).
         predicted: ``p_hat`` (k, 3) from ``predict``.
         state_slots: (k,) index of each landmark among the estimated ones, -1 for anchors.
-        state_dim: 15 + 3n.
     """
+    predicted = np.asarray(predicted, dtype=float)
+    slots = np.asarray(state_slots, dtype=int)
     count = len(predicted)
-    H = np.zeros((3 * count, state_dim))
+    estimated = np.flatnonzero(slots >= 0)
+    landmark_columns = (VEHICLE_DIM + 3 * slots[estimated, None] + np.arange(3)).ravel()
+    columns = np.concatenate(
+        [
+            np.arange(ATTITUDE.start, ATTITUDE.stop),
+            np.arange(POSITION.start, POSITION.stop),
+            landmark_columns,
+        ]
+    )
+    values = np.zeros((3 * count, columns.size))
     attitude_t = attitude.T
     for i in range(count):
         rows = slice(3 * i, 3 * i + 3)
-        H[rows, ATTITUDE] = 2.0 * skew(predicted[i])
-        H[rows, POSITION] = -attitude_t
-        slot = int(state_slots[i])
-        if slot >= 0:
-            start = VEHICLE_DIM + 3 * slot
-            H[rows, start : start + 3] = attitude_t
-    return H
+        values[rows, 0:3] = 2.0 * skew(predicted[i])
+        values[rows, 3:6] = -attitude_t
+    for local, i in enumerate(estimated):
+        values[3 * i : 3 * i + 3, 6 + 3 * local : 9 + 3 * local] = attitude_t
+    return SparseJacobian(columns, values)
+
+
+def sensitivity(
+    attitude: np.ndarray, predicted: np.ndarray, state_slots: np.ndarray, state_dim: int
+) -> np.ndarray:
+    """Aghili eq. (10) as the dense (3k, state_dim) matrix (``sparse_sensitivity``)."""
+    return sparse_sensitivity(attitude, predicted, state_slots).dense(state_dim)

@@ -4,45 +4,23 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
-from filters.association import DEFAULT_MAX_NODES
+from datasets.estimator_options import (
+    AssociationOptions,
+    MeasurementNoiseOptions,
+    RecordingOptions,
+)
 
 
-class EkfSlamConfig(BaseModel):
-    """Options of ``ekf-slam``."""
+class EkfSlamConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOptions):
+    """Options of ``ekf-slam`` (association, snapshot and noise-scale options: the shared
+    vocabulary of ``datasets.estimator_options``)."""
 
     model_config = ConfigDict(extra="forbid")
     motion_input: Literal["auto", "odometry", "gyro"] = Field(
         "auto",
         description="motion model input: auto = odometry when the data has it, else the gyro (IMU gyro in 3-D)",
-    )
-    association: Literal["auto", "ids", "jcbb"] = Field(
-        "auto", description="auto = the scan's ids when present, else JCBB (filters/association.py)"
-    )
-    gate_probability: float = Field(
-        0.99, gt=0, lt=1, description="chi-square gate probability of JCBB (individual and joint)"
-    )
-    # Measured on sim:guerreiro-loop (ids withheld, seed 0): at the association module's
-    # default cap (DEFAULT_MAX_NODES) the revisit scans hit the cap and the run takes ~25 min;
-    # at 2000 it takes ~1.5 min with the same association precision (0.859 vs 0.858).
-    max_nodes: int = Field(
-        2000,
-        ge=1,
-        le=DEFAULT_MAX_NODES * 10,
-        description="cap on JCBB interpretation-tree nodes per scan",
-    )
-    new_landmark_probability: float = Field(
-        0.999,
-        gt=0,
-        lt=1,
-        description="JCBB: an unassigned sighting starts a landmark only when it is outside this chi-square gate of every landmark (between the gates it is discarded)",
-    )
-    id_gate_probability: float | None = Field(
-        0.9999,
-        gt=0,
-        lt=1,
-        description="with ids: reject a sighting whose NIS exceeds this chi-square quantile (None: never)",
     )
     acceleration_density: float = Field(
         0.3,
@@ -70,9 +48,6 @@ class EkfSlamConfig(BaseModel):
     odometry_noise_scale: float = Field(
         1.0, gt=0, description="multiplies the odometry covariance of the data"
     )
-    measurement_noise_scale: float = Field(
-        1.0, gt=0, description="multiplies the landmark covariances of the data"
-    )
     max_gap_s: float = Field(
         1.0,
         gt=0,
@@ -88,7 +63,4 @@ class EkfSlamConfig(BaseModel):
         None,
         gt=0,
         description="delete a landmark seen only once when this long has passed (None: keep every landmark)",
-    )
-    landmark_snapshot_every_s: float = Field(
-        1.0, ge=0, description="interval of the recorded map snapshots [s] (0: every scan)"
     )

@@ -11,22 +11,20 @@ al. 2001):
   ``P_vv <- F P_vv F^T + Q``, ``P_vl <- F P_vl``. A scan is applied to the vehicle as
   predicted at the last motion sample (sources emit the motion sample of a scan's time
   first); the next motion sample then covers the whole interval since the previous one.
-- *Association* by the scan's ids when it has them (a sighting whose NIS exceeds the
-  ``id_gate_probability`` quantile is rejected), else JCBB from ``filters.association``
-  on the landmarks individually compatible with some sighting (their joint predicted
-  covariance ``H P H^T`` is passed, so the joint test sees the correlations).
-  Unassigned sightings with no compatible landmark start new landmarks; ambiguous ones
-  (compatible but left out of the hypothesis) are neither used nor mapped.
-- *Update*: all associated sightings of a scan stacked in one update with the Joseph form
-  ``P <- (I - K H) P (I - K H)^T + K R K^T``, evaluated as the algebraically identical
-  ``P - K H P - (K H P)^T + K S K^T`` in O(n^2 p) (n state size, p stacked rows), which
-  keeps P symmetric positive semi-definite for any gain.
-- *Landmark initialisation* on first sight with the full cross-covariances:
-  ``l = p + R z``, ``P_ll = G_v P_vv G_v^T + R Sigma_z R^T``, ``P_lx = G_v P_vx``.
+- *Association* by the shared policy (``filters.association.AssociationPolicy``): the
+  scan's ids when it has them (a sighting outside the ``id_gate_probability`` gate is
+  rejected and counted), else JCBB on the landmarks individually compatible with some
+  sighting, with their joint predicted covariance ``H P H^T``.
+- *Update*: all associated sightings of a scan stacked in one block-sparse update of the
+  shared Kalman core (``filters.kalman.update``; each row block touches the vehicle and its
+  own landmark only).
+- *Landmark initialisation* on first sight with the full cross-covariances
+  (``filters.kalman.augment``): ``l = p + R z``, ``P_ll = G_v P_vv G_v^T + R Sigma_z R^T``,
+  ``P_lx = G_v P_vx``.
 
-Diagnostics: one NIS per associated sighting (its individual innovation against the prior,
-``d`` dof), an association record for every sighting (map id, -1 when rejected or
-ambiguous), the landmark count after every scan, ``motion_gap`` events, map snapshots.
+Diagnostics: the stacked NIS of every scan update and the NIS of each associated sighting
+(``d`` dof), one association decision for every sighting, the landmark count after every
+scan, ``motion_gap`` events, map snapshots.
 Exported blocks: pose (interface convention: right perturbation, ``boundary``), world
 velocity and gyro bias (gyro model), world-frame landmarks.
 
@@ -43,12 +41,14 @@ import numpy as np
 from pydantic import BaseModel
 
 from datasets.errors import InputError
-from datasets.estimate import Estimate, EstimateRecorder
+from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Odometry, Sensor
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, so3_exp, wrap_angle
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
-from filters.association import associate_jcbb, chi2_gate
+from datasets.stream_clock import StreamClock
+from filters import kalman
+from filters.association import AssociationPolicy, ScanAssociation
 from filters.ekf_slam.boundary import pose_covariance_to_interface
 from filters.ekf_slam.config import EkfSlamConfig
 from filters.ekf_slam.layout import VehicleLayout
@@ -105,19 +105,20 @@ class EkfSlam:
         self.covariance = np.diag(variances)
         self.landmarks = np.zeros((0, d))
         self.map_ids: list[int] = []
+        self.source_ids: list[int] = []  # the scan id each landmark was created from (-1: none)
         self.sightings: list[int] = []
         self.created_t: list[float] = []
-        self.source_index: dict[int, int] = {}  # source id -> map index (id association)
         self.next_id = 0
         self.t = float(start.t)
+        self.clock = StreamClock(f"ekf-slam on {sequence.name}", start.t)
         # time of the last motion input: a scan between motion samples moves ``t`` but not this
         self.motion_t = float(start.t)
-        self.recorder = EstimateRecorder(d)
-        self.last_snapshot_t = -np.inf
-        self.pending_record = True
+        self.recorder = EstimateRecorder(d, config.snapshot_interval_s)
+        self.policy = AssociationPolicy(config, d)
         self.gaps = 0
         self.association_modes: set[str] = set()
         self.last_rate: np.ndarray | None = None
+        self._record()
 
     # ------------------------------------------------------------------ set-up
     @staticmethod
@@ -146,18 +147,15 @@ class EkfSlam:
 
     # ------------------------------------------------------------------ inputs
     def process(self, measurement: Measurement) -> None:
-        if not np.isfinite(measurement.t):
-            raise InputError(f"non-finite time stamp after t={self.t:.6f} s")
-        if measurement.t < self.t - 1e-9:
-            raise InputError(
-                f"time goes backwards at t={measurement.t:.6f} s (previous {self.t:.6f} s)"
-            )
-        if measurement.t > self.t and self.pending_record:
-            self._record()
+        self.clock.advance(measurement.t, type(measurement).__name__)
+        self.t = max(self.t, float(measurement.t))
         if isinstance(measurement, LandmarkScan):
             self._scan(measurement)
         elif measurement.sensor is self.input:
             self._motion(measurement)
+        else:
+            return
+        self._record()
 
     def _motion(self, measurement: Measurement) -> None:
         dt = float(measurement.t) - self.motion_t
@@ -206,25 +204,12 @@ class EkfSlam:
             process[self.layout.rotation, self.layout.rotation] += (
                 np.eye(self.layout.rotation_size) * (self.config.gap_rate_rad_s * dt) ** 2
             )
-        self._propagate(new, transition, process)
-        self.motion_t = float(measurement.t)
-        self.t = max(self.t, float(measurement.t))
-        self.pending_record = True
-
-    def _propagate(self, new: VehicleMean, transition: np.ndarray, process: np.ndarray) -> None:
-        """``P_vv <- F P_vv F^T + Q``, ``P_vl <- F P_vl`` (landmarks are static)."""
-        v = self.vehicle_size
-        P = self.covariance
-        P[:v, :v] = transition @ P[:v, :v] @ transition.T + process
-        if P.shape[0] > v:
-            P[:v, v:] = transition @ P[:v, v:]
-            P[v:, :v] = P[:v, v:].T
-        P[:v, :v] = 0.5 * (P[:v, :v] + P[:v, :v].T)
+        kalman.propagate_vehicle(self.covariance, self.vehicle_size, transition, process)
         self.vehicle = new
+        self.motion_t = float(measurement.t)
 
     # ------------------------------------------------------------------ scans
     def _scan(self, scan: LandmarkScan) -> None:
-        self.t = max(self.t, float(scan.t))
         if scan.points.ndim != 2 or scan.points.shape[1] != self.dimension:
             raise InputError(
                 f"landmark scan at t={scan.t:.6f} s has points of shape {scan.points.shape}, expected (k, {self.dimension})"
@@ -233,164 +218,79 @@ class EkfSlam:
             raise InputError(f"landmark scan at t={scan.t:.6f} s contains NaN or inf")
         points = np.asarray(scan.points, float)
         noise = np.asarray(scan.covariances, float) * self.config.measurement_noise_scale
-        mode = self._association_mode(scan)
+        mode = self.policy.mode(scan.ids, scan.t)
         self.association_modes.add(mode)
-        k = len(points)
-        assignments = np.full(k, -1, dtype=int)  # map index per sighting
-        new_sightings: list[int] = []
-        if k and mode == "ids":
-            assignments, new_sightings = self._associate_by_ids(scan, points, noise)
-        elif k:
-            assignments, new_sightings = self._associate_jcbb(scan.t, points, noise)
-        paired = np.flatnonzero(assignments >= 0)
-        if len(paired):
-            self._update(scan.t, points[paired], noise[paired], assignments[paired])
+        predictor = _MapPredictor(self)
+        if mode == "ids":
+            association = self.policy.by_ids(
+                scan.ids, points, noise, np.array(self.source_ids, dtype=int), predictor
+            )
+        else:
+            association = self.policy.by_geometry(points, noise, len(self.map_ids), predictor, mode)
+            if association.search is not None:
+                search = association.search
+                self.recorder.extra("jcbb_nodes", [scan.t, search.nodes, float(search.truncated)])
+                if search.truncated:
+                    self.recorder.event(scan.t, "jcbb_truncated", nodes=search.nodes)
+        matched = association.rows(AssociationDecision.MATCHED)
+        if len(matched):
+            self._update(scan.t, points[matched], noise[matched], association.candidates[matched])
         created: dict[int, int] = {}
-        for j in new_sightings:
-            created[j] = self._add_landmark(scan.t, points[j], noise[j])
-            if scan.ids is not None and mode == "ids":
-                self.source_index[int(scan.ids[j])] = created[j]
-        for j in range(k):
-            if j in created:
-                self.recorder.association(scan.t, j, self.map_ids[created[j]], True)
-            elif assignments[j] >= 0:
-                self.sightings[assignments[j]] += 1
-                self.recorder.association(scan.t, j, self.map_ids[assignments[j]], False)
-            else:
-                self.recorder.association(scan.t, j, -1, False)
+        for j in association.rows(AssociationDecision.NEW):
+            source = int(scan.ids[j]) if mode == "ids" else -1
+            created[int(j)] = self._add_landmark(scan.t, points[j], noise[j], source)
+        self._record_associations(scan.t, association, created)
         self._prune(scan.t)
         self.recorder.landmark_count(scan.t, len(self.map_ids))
-        if scan.t - self.last_snapshot_t >= self.config.landmark_snapshot_every_s:
+        if self.recorder.snapshot_due(scan.t):
             self.recorder.landmarks(self._map_snapshot(scan.t))
-            self.last_snapshot_t = scan.t
-        self.pending_record = True
 
-    def _association_mode(self, scan: LandmarkScan) -> str:
-        if self.config.association == "ids":
-            if scan.ids is None:
-                raise InputError(
-                    f"association=ids but the landmark scan at t={scan.t:.6f} s has no ids (use association=jcbb)"
-                )
-            return "ids"
-        if self.config.association == "jcbb":
-            return "jcbb"
-        return "ids" if scan.ids is not None else "jcbb"
+    def _record_associations(
+        self, t: float, association: ScanAssociation, created: dict[int, int]
+    ) -> None:
+        for j, decision in enumerate(association.decisions):
+            if decision == AssociationDecision.NEW:
+                landmark_id = self.map_ids[created[j]]
+            elif decision == AssociationDecision.MATCHED:
+                self.sightings[association.candidates[j]] += 1
+                landmark_id = self.map_ids[association.candidates[j]]
+            else:
+                landmark_id = -1
+            self.recorder.association(t, j, landmark_id, decision, association.reasons[j])
 
-    def _predicted_blocks(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted observations (m, d) and the stacked Jacobian H (m*d, n) of map landmarks."""
-        d, v, n = self.dimension, self.vehicle_size, self.covariance.shape[0]
+    def observation_jacobian(self, indices: np.ndarray) -> tuple[np.ndarray, kalman.SparseJacobian]:
+        """Predicted observations (n, d) of map landmarks ``indices`` and the stacked ``H``
+        (n d rows) by its non-zero columns: the vehicle block and each landmark's own."""
+        d, v = self.dimension, self.vehicle_size
+        indices = np.asarray(indices, dtype=int)
         predicted, vehicle_jac, landmark_jac = predict_observations(
             self.vehicle, self.layout, self.landmarks[indices]
         )
-        H = np.zeros((len(indices) * d, n))
-        for row, index in enumerate(indices):
-            H[row * d : row * d + d, :v] = vehicle_jac[row]
-            H[row * d : row * d + d, self.layout.landmark(int(index))] = landmark_jac
-        return predicted, H
-
-    def _individual_distances(
-        self, points: np.ndarray, noise: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per-landmark predictions, their marginal covariances (m, d, d), and D^2 (k, m)."""
-        m, d, v = len(self.map_ids), self.dimension, self.vehicle_size
-        predicted, vehicle_jac, landmark_jac = predict_observations(
-            self.vehicle, self.layout, self.landmarks
-        )
-        P = self.covariance
-        starts = v + np.arange(m) * d
-        cross = np.stack([P[:v, s : s + d] for s in starts]) if m else np.zeros((0, v, d))
-        own = np.stack([P[s : s + d, s : s + d] for s in starts]) if m else np.zeros((0, d, d))
-        hv_pvv = vehicle_jac @ P[:v, :v]
-        blocks = hv_pvv @ np.swapaxes(vehicle_jac, 1, 2)
-        mixed = vehicle_jac @ cross @ landmark_jac.T
-        blocks = blocks + mixed + np.swapaxes(mixed, 1, 2) + landmark_jac @ own @ landmark_jac.T
-        innovation = points[:, None, :] - predicted[None, :, :]
-        total = noise[:, None, :, :] + blocks[None, :, :, :]
-        distances = np.einsum(
-            "kmi,kmi->km", innovation, np.linalg.solve(total, innovation[..., None])[..., 0]
-        )
-        return predicted, blocks, distances
-
-    def _associate_by_ids(
-        self, scan: LandmarkScan, points: np.ndarray, noise: np.ndarray
-    ) -> tuple[np.ndarray, list[int]]:
-        ids = np.asarray(scan.ids, dtype=int)
-        assignments = np.full(len(points), -1, dtype=int)
-        new: list[int] = []
-        seen: set[int] = set()
-        known = [j for j, i in enumerate(ids) if int(i) in self.source_index]
-        for j, source_id in enumerate(ids):
-            if int(source_id) in seen:
-                continue  # the same id twice in one scan: use the first sighting only
-            seen.add(int(source_id))
-            if int(source_id) in self.source_index:
-                assignments[j] = self.source_index[int(source_id)]
-            else:
-                new.append(j)
-        if known and self.config.id_gate_probability is not None:
-            _, _, distances = self._individual_distances(points[known], noise[known])
-            gate = chi2_gate(self.dimension, self.config.id_gate_probability)
-            for row, j in enumerate(known):
-                if assignments[j] >= 0 and distances[row, assignments[j]] >= gate:
-                    assignments[j] = -1
-        return assignments, new
-
-    def _associate_jcbb(
-        self, t: float, points: np.ndarray, noise: np.ndarray
-    ) -> tuple[np.ndarray, list[int]]:
-        k, d = points.shape
-        assignments = np.full(k, -1, dtype=int)
-        if not self.map_ids:
-            return assignments, list(range(k))
-        _, _, distances = self._individual_distances(points, noise)
-        compatible = distances < chi2_gate(d, self.config.gate_probability)
-        subset = np.flatnonzero(compatible.any(axis=0))
-        if len(subset) == 0:
-            return assignments, list(range(k))
-        predicted, H = self._predicted_blocks(subset)
-        joint = H @ self.covariance @ H.T
-        result = associate_jcbb(
-            points,
-            noise,
-            predicted,
-            0.5 * (joint + joint.T),
-            gate_probability=self.config.gate_probability,
-            max_nodes=self.config.max_nodes,
-        )
-        self.recorder.extra("jcbb_nodes", [t, result.nodes, float(result.truncated)])
-        paired = result.assignments >= 0
-        assignments[paired] = subset[result.assignments[paired]]
-        # A sighting just outside the association gate is more likely a poorly predicted old
-        # landmark than a new one: only sightings far from every landmark start one.
-        far = distances.min(axis=1) >= chi2_gate(
-            d, max(self.config.new_landmark_probability, self.config.gate_probability)
-        )
-        new = [
-            j
-            for j in range(k)
-            if result.assignments[j] < 0 and result.candidate_counts[j] == 0 and far[j]
-        ]
-        return assignments, new
+        n = len(indices)
+        columns = np.concatenate([np.arange(v), (v + indices[:, None] * d + np.arange(d)).ravel()])
+        values = np.zeros((n * d, v + n * d))
+        values[:, :v] = vehicle_jac.reshape(n * d, v)
+        for row in range(n):
+            values[row * d : row * d + d, v + row * d : v + row * d + d] = landmark_jac
+        return predicted, kalman.SparseJacobian(columns, values)
 
     def _update(self, t: float, points: np.ndarray, noise: np.ndarray, indices: np.ndarray) -> None:
-        """Stacked EKF update with the Joseph form (see the module docstring)."""
+        """One stacked update of every associated sighting (the shared core)."""
         d = self.dimension
-        predicted, H = self._predicted_blocks(indices)
-        P = self.covariance
-        R = np.zeros((len(indices) * d, len(indices) * d))
-        for row in range(len(indices)):
-            R[row * d : row * d + d, row * d : row * d + d] = noise[row]
-        innovation = (points - predicted).ravel()
-        HP = H @ P
-        S = HP @ H.T + R
-        S = 0.5 * (S + S.T)
-        for row in range(len(indices)):
-            block = slice(row * d, row * d + d)
-            nu = innovation[block]
-            self.recorder.nis(t, float(nu @ np.linalg.solve(S[block, block], nu)), d)
-        gain = np.linalg.solve(S, HP).T  # K = P H^T S^-1 (S symmetric)
-        self.covariance = joseph_update(P, HP, S, gain)
-        self._inject(gain @ innovation)
+        predicted, jacobian = self.observation_jacobian(indices)
+        groups = [np.arange(row * d, row * d + d) for row in range(len(indices))]
+        outcome = kalman.update(
+            self.covariance, (points - predicted).ravel(), jacobian, noise, groups
+        )
+        if outcome.innovation is not None:
+            innovation = outcome.innovation
+            self.recorder.innovation(
+                t, innovation.nis, innovation.dof, innovation.group_nis, innovation.group_dof
+            )
+        if outcome.correction is None:
+            self.recorder.event(t, "update_refused", reason=outcome.refused)
+            return
+        self._inject(outcome.correction)
 
     def _inject(self, correction: np.ndarray) -> None:
         """Add the error-state correction to the mean (multiplicatively on the 3-D rotation)."""
@@ -416,21 +316,15 @@ class EkfSlam:
                 -1, self.dimension
             )
 
-    def _add_landmark(self, t: float, point: np.ndarray, noise: np.ndarray) -> int:
-        """Augment the state with a new landmark and its cross-covariances; returns its map index."""
-        v, n, d = self.vehicle_size, self.covariance.shape[0], self.dimension
+    def _add_landmark(self, t: float, point: np.ndarray, noise: np.ndarray, source: int) -> int:
+        """Augment the state with a new landmark and its cross-covariances; returns its map
+        index. ``source``: the scan id it was created from (-1 without ids)."""
         position, vehicle_jac, point_jac = initialise_landmark(self.vehicle, self.layout, point)
-        P = self.covariance
-        cross = vehicle_jac @ P[:v, :]  # (d, n): cov(l, x)
-        own = vehicle_jac @ P[:v, :v] @ vehicle_jac.T + point_jac @ noise @ point_jac.T
-        grown = np.zeros((n + d, n + d))
-        grown[:n, :n] = P
-        grown[n:, :n] = cross
-        grown[:n, n:] = cross.T
-        grown[n:, n:] = 0.5 * (own + own.T)
-        self.covariance = grown
+        jacobian = kalman.SparseJacobian(np.arange(self.vehicle_size), vehicle_jac)
+        self.covariance = kalman.augment(self.covariance, jacobian, point_jac @ noise @ point_jac.T)
         self.landmarks = np.vstack([self.landmarks, position])
         self.map_ids.append(self.next_id)
+        self.source_ids.append(int(source))
         self.next_id += 1
         self.sightings.append(1)
         self.created_t.append(float(t))
@@ -441,28 +335,23 @@ class EkfSlam:
         horizon = self.config.prune_single_sightings_after_s
         if horizon is None:
             return
-        drop = [
+        drop = {
             i
             for i in range(len(self.map_ids))
             if self.sightings[i] == 1 and t - self.created_t[i] > horizon
-        ]
+        }
         if not drop:
             return
-        keep = [i for i in range(len(self.map_ids)) if i not in set(drop)]
+        keep = [i for i in range(len(self.map_ids)) if i not in drop]
         v, d = self.vehicle_size, self.dimension
-        rows = np.concatenate(
-            [np.arange(v)] + [np.arange(v + i * d, v + i * d + d) for i in keep]
-        ).astype(int)
-        self.covariance = self.covariance[np.ix_(rows, rows)]
+        rows = np.concatenate([np.arange(v)] + [np.arange(v + i * d, v + i * d + d) for i in keep])
+        self.covariance = kalman.marginalize(self.covariance, rows)
         self.landmarks = self.landmarks[keep]
-        removed = [self.map_ids[i] for i in drop]
-        remap = {old: new for new, old in enumerate(keep)}
+        removed = [self.map_ids[i] for i in sorted(drop)]
         self.map_ids = [self.map_ids[i] for i in keep]
+        self.source_ids = [self.source_ids[i] for i in keep]
         self.sightings = [self.sightings[i] for i in keep]
         self.created_t = [self.created_t[i] for i in keep]
-        self.source_index = {
-            key: remap[index] for key, index in self.source_index.items() if index in remap
-        }
         self.recorder.event(t, "landmarks_pruned", map_ids=removed, reason="seen once")
 
     # ------------------------------------------------------------------ output
@@ -513,12 +402,10 @@ class EkfSlam:
                 P[layout.gyro_bias, layout.gyro_bias],
                 Frame.BODY,
             )
-        self.pending_record = False
 
     def estimate(self) -> Estimate:
-        if self.pending_record:
-            self._record()
-        final_map = self._map_snapshot(None)
+        final_map = self._map_snapshot(self.t)
+        self.recorder.final_snapshot(final_map)
         single = int(sum(1 for count in self.sightings if count == 1))
         notes = (
             f"ekf-slam: motion input {self.input.value}, association {'+'.join(sorted(self.association_modes)) or 'none'}, "
@@ -527,20 +414,35 @@ class EkfSlam:
         return self.recorder.build(landmarks=final_map, notes=notes)
 
 
-def joseph_update(P: np.ndarray, HP: np.ndarray, S: np.ndarray, gain: np.ndarray) -> np.ndarray:
-    """Joseph-form covariance update ``(I - K H) P (I - K H)^T + K R K^T`` in O(n^2 p).
+class _MapPredictor:
+    """The association ``Predictor`` of the EKF's map (world landmarks seen from the
+    vehicle): predictions and ``H P H^T`` with the state's correlations."""
 
-    Expanded with ``S = H P H^T + R``: ``P - K H P - (K H P)^T + K S K^T``, the same matrix
-    for *any* gain ``K`` (not only the optimal one), which is what makes the Joseph form
-    robust; symmetrised on return.
+    def __init__(self, ekf: EkfSlam) -> None:
+        self.ekf = ekf
 
-    Args:
-        P: prior covariance (n, n). HP: ``H @ P`` (p, n). S: innovation covariance (p, p).
-        gain: K (n, p).
-    """
-    KHP = gain @ HP
-    updated = P - KHP - KHP.T + gain @ S @ gain.T
-    return 0.5 * (updated + updated.T)
+    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ekf = self.ekf
+        d, v = ekf.dimension, ekf.vehicle_size
+        indices = np.asarray(indices, dtype=int)
+        predicted, vehicle_jac, landmark_jac = predict_observations(
+            ekf.vehicle, ekf.layout, ekf.landmarks[indices]
+        )
+        P = ekf.covariance
+        starts = v + indices * d
+        rows = starts[:, None] + np.arange(d)
+        cross = P[:v][:, rows].transpose(1, 0, 2)  # (n, v, d): cov(vehicle, landmark)
+        own = P[rows[:, :, None], rows[:, None, :]]  # (n, d, d)
+        blocks = vehicle_jac @ P[:v, :v] @ np.swapaxes(vehicle_jac, 1, 2)
+        mixed = vehicle_jac @ cross @ landmark_jac.T
+        blocks = blocks + mixed + np.swapaxes(mixed, 1, 2) + landmark_jac @ own @ landmark_jac.T
+        return predicted, blocks
+
+    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        predicted, jacobian = self.ekf.observation_jacobian(indices)
+        values, columns = jacobian.values, jacobian.columns
+        joint = values @ self.ekf.covariance[np.ix_(columns, columns)] @ values.T
+        return predicted, 0.5 * (joint + joint.T)
 
 
 def _first(*values: float | None) -> float:

@@ -53,7 +53,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
-from datasets.estimate import Estimate, EstimateRecorder
+from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, so3_exp
 from datasets.sequence import Sequence
@@ -487,7 +487,13 @@ class SensorBasedSlam:
             if scan.ids is not None and self.config.association == "ids":
                 self.true_to_map[int(scan.ids[j])] = landmark_id
         for j in range(k):
-            self.recorder.association(t, j, int(assignment[j]), bool(is_new[j]))
+            if is_new[j]:
+                decision = AssociationDecision.NEW
+            elif assignment[j] >= 0:
+                decision = AssociationDecision.MATCHED
+            else:
+                decision = AssociationDecision.REJECTED
+            self.recorder.association(t, j, int(assignment[j]), decision)
 
         seen_ids = set(int(a) for a in assignment if a >= 0)
         state = self.state

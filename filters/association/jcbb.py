@@ -1,21 +1,9 @@
-"""Data association: individual compatibility gating and JCBB (Neira and Tardos, 2001).
+"""Joint Compatibility Branch and Bound (Neira and Tardos 2001, section IV) and the gated
+nearest-neighbour baseline it improves on.
 
-Shared by every estimator (the sensor-based filter, the Aghili filter, EKF-SLAM, the GTSAM
-smoothers and loop closing), so it speaks only in *predicted measurements*: each caller
-supplies
-
-- ``measured`` ``z_j`` (k, d) with covariance ``R`` (per measurement blocks (k, d, d), or the
-  full (k*d, k*d) matrix),
-- ``predicted`` ``h_i`` (m, d), the map landmarks as the sensor would see them, with the
-  *joint* covariance ``H P H^T`` of all predictions (m*d, m*d): the off-diagonal blocks are
-  what makes the joint compatibility test differ from the individual one,
-- optionally the cross covariance ``cov(z, h)`` (k*d, m*d), zero for an ordinary scan
-  (independent sensor noise); loop closing, where both sides are state landmarks, needs it.
-
-The innovation of pairing measurement ``j`` with landmark ``i`` is ``nu = z_j - h_i`` with
-covariance ``R_jj + P_ii - C_ji - C_ji^T``; a hypothesis stacks its pairs, and its joint
-Mahalanobis distance ``D^2 = nu^T S^-1 nu`` is compared with the chi-square quantile of
-``d * pairs`` degrees of freedom (Neira and Tardos 2001, eqs. (8)-(10)).
+A hypothesis stacks its pairs, and its joint Mahalanobis distance ``D^2 = nu^T S^-1 nu`` is
+compared with the chi-square quantile of ``d * pairs`` degrees of freedom (Neira and Tardos
+2001, eqs. (8)-(10)).
 
 Bounded run time (both mechanisms, always on):
 
@@ -30,32 +18,25 @@ Bounded run time (both mechanisms, always on):
 
 Joint distances are computed incrementally: the Cholesky factor of the hypothesis
 covariance is extended by one ``d x d`` block per node (O(n^2 d) per node, n the hypothesis
-size) rather than refactored. (The triangular solves use ``numpy.linalg.solve``: on this
-machine scipy's ``solve_triangular`` costs milliseconds per tiny call, numpy microseconds.)
-
-Imports numpy, scipy and ``datasets.errors`` only: nothing else from ``filters``.
+size) rather than refactored. (The triangular solves use ``numpy.linalg.solve``: with BLAS
+threads contending, scipy's ``solve_triangular`` was measured at milliseconds per tiny
+call, numpy at microseconds.)
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-from scipy.stats import chi2
 
 from datasets.errors import InputError
-
-DEFAULT_MAX_NODES = 20_000
-"""Default cap on joint-compatibility tests per call (see ``benchmarks/bench_association.py``)."""
-
-
-@lru_cache(maxsize=1024)
-def chi2_gate(dof: int, probability: float) -> float:
-    """Chi-square quantile: the gate ``D^2 < chi2_gate(dof, probability)`` (dimensionless)."""
-    if dof <= 0:
-        return 0.0
-    return float(chi2.ppf(probability, dof))
+from datasets.estimator_options import DEFAULT_MAX_JCBB_NODES
+from filters.association.compatibility import (
+    check_inputs,
+    chi2_gate,
+    full_from,
+    individual_compatibility,
+)
 
 
 @dataclass(frozen=True)
@@ -94,112 +75,6 @@ class AssociationResult:
     def ambiguous(self) -> np.ndarray:
         """(k,) bool: unassigned although individually compatible with some landmark."""
         return (self.assignments < 0) & (self.candidate_counts > 0)
-
-
-def _as_blocks(cov: np.ndarray, count: int, d: int, name: str) -> np.ndarray:
-    """Per-item (count, d, d) diagonal blocks of a (count, d, d) or (count*d, count*d) input."""
-    cov = np.asarray(cov, dtype=float)
-    if cov.shape == (count, d, d):
-        return cov
-    if cov.shape == (count * d, count * d):
-        idx = np.arange(count)[:, None] * d + np.arange(d)[None, :]
-        return cov[idx[:, :, None], idx[:, None, :]]
-    raise InputError(
-        f"association: {name} must have shape ({count}, {d}, {d}) or ({count * d}, {count * d}), got {cov.shape}"
-    )
-
-
-def _full_from(cov: np.ndarray, count: int, d: int) -> np.ndarray:
-    """Full (count*d, count*d) matrix from blocks or a full matrix."""
-    cov = np.asarray(cov, dtype=float)
-    if cov.shape == (count * d, count * d):
-        return cov
-    full = np.zeros((count * d, count * d))
-    for j in range(count):
-        full[j * d : (j + 1) * d, j * d : (j + 1) * d] = cov[j]
-    return full
-
-
-def _check_inputs(
-    measured: np.ndarray,
-    measured_cov: np.ndarray,
-    predicted: np.ndarray,
-    predicted_cov: np.ndarray,
-    cross_cov: np.ndarray | None,
-) -> tuple[np.ndarray, np.ndarray, int, int, int]:
-    measured = np.asarray(measured, dtype=float)
-    predicted = np.asarray(predicted, dtype=float)
-    if measured.ndim != 2 or predicted.ndim != 2:
-        raise InputError(
-            f"association: measured (k, d) and predicted (m, d) must be 2-D, got {measured.shape} and {predicted.shape}"
-        )
-    k, d = measured.shape
-    m = predicted.shape[0]
-    if m and predicted.shape[1] != d:
-        raise InputError(
-            f"association: measured has dimension {d} but predicted has {predicted.shape[1]}"
-        )
-    for name, array in (
-        ("measured", measured),
-        ("predicted", predicted),
-        ("measured_cov", measured_cov),
-        ("predicted_cov", predicted_cov),
-    ):
-        if not np.all(np.isfinite(np.asarray(array, dtype=float))):
-            raise InputError(f"association: {name} contains NaN or inf")
-    if cross_cov is not None and np.asarray(cross_cov).shape != (k * d, m * d):
-        raise InputError(
-            f"association: cross_cov must have shape ({k * d}, {m * d}), got {np.asarray(cross_cov).shape}"
-        )
-    return measured, predicted, k, m, d
-
-
-def individual_compatibility(
-    measured: np.ndarray,
-    measured_cov: np.ndarray,
-    predicted: np.ndarray,
-    predicted_cov: np.ndarray,
-    cross_cov: np.ndarray | None = None,
-) -> np.ndarray:
-    """Squared Mahalanobis distance of every (measurement, landmark) pair.
-
-    Neira and Tardos (2001), eq. (8): ``D2[j, i] = nu^T S^-1 nu`` with ``nu = z_j - h_i`` and
-    ``S = R_jj + P_ii - C_ji - C_ji^T``.
-
-    Args:
-        measured: (k, d). measured_cov: (k, d, d) or (k*d, k*d).
-        predicted: (m, d). predicted_cov: (m, d, d) blocks or the joint (m*d, m*d).
-        cross_cov: cov(z, h), (k*d, m*d), or None (independent).
-
-    Returns:
-        (k, m) array of ``D^2`` (d degrees of freedom); ``inf`` where ``S`` is singular.
-    """
-    measured, predicted, k, m, d = _check_inputs(
-        measured, measured_cov, predicted, predicted_cov, cross_cov
-    )
-    if k == 0 or m == 0:
-        return np.zeros((k, m))
-    r_blocks = _as_blocks(measured_cov, k, d, "measured_cov")
-    p_blocks = _as_blocks(predicted_cov, m, d, "predicted_cov")
-    s = r_blocks[:, None, :, :] + p_blocks[None, :, :, :]
-    if cross_cov is not None:
-        c = np.asarray(cross_cov, dtype=float).reshape(k, d, m, d).transpose(0, 2, 1, 3)
-        s = s - c - np.swapaxes(c, -1, -2)
-    nu = measured[:, None, :] - predicted[None, :, :]
-    distances = np.full((k, m), np.inf)
-    try:
-        solved = np.linalg.solve(s, nu[..., None])[..., 0]
-        distances = np.einsum("kmi,kmi->km", nu, solved)
-    except np.linalg.LinAlgError:
-        # A singular block somewhere: fall back pair by pair so only that pair is rejected.
-        for j in range(k):
-            for i in range(m):
-                try:
-                    distances[j, i] = float(nu[j, i] @ np.linalg.solve(s[j, i], nu[j, i]))
-                except np.linalg.LinAlgError:
-                    distances[j, i] = np.inf
-    distances = np.where(np.isfinite(distances) & (distances >= 0), distances, np.inf)
-    return distances
 
 
 class _JointSearch:
@@ -326,7 +201,7 @@ def associate_jcbb(
     predicted_cov: np.ndarray,
     cross_cov: np.ndarray | None = None,
     gate_probability: float = 0.99,
-    max_nodes: int = DEFAULT_MAX_NODES,
+    max_nodes: int = DEFAULT_MAX_JCBB_NODES,
     candidate_mask: np.ndarray | None = None,
 ) -> AssociationResult:
     """Joint Compatibility Branch and Bound (Neira and Tardos 2001, section IV).
@@ -350,7 +225,7 @@ def associate_jcbb(
     Returns:
         ``AssociationResult``.
     """
-    measured, predicted, k, m, d = _check_inputs(
+    measured, predicted, k, m, d = check_inputs(
         measured, measured_cov, predicted, predicted_cov, cross_cov
     )
     if max_nodes < 1:
@@ -393,8 +268,8 @@ def associate_jcbb(
     search = _JointSearch(
         measured,
         predicted,
-        _full_from(measured_cov, k, d),
-        _full_from(predicted_cov, m, d),
+        full_from(measured_cov, k, d),
+        full_from(predicted_cov, m, d),
         None if cross_cov is None else np.asarray(cross_cov, dtype=float),
         order,
         candidates,
@@ -432,7 +307,7 @@ def associate_nearest_neighbour(
     The baseline JCBB improves on; same arguments and result as ``associate_jcbb``
     (``joint_nis`` here is the sum of the individual distances, ``nodes`` 0).
     """
-    measured, predicted, k, m, d = _check_inputs(
+    measured, predicted, k, m, d = check_inputs(
         measured, measured_cov, predicted, predicted_cov, cross_cov
     )
     assignments = np.full(k, -1, dtype=int)

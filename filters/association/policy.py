@@ -1,0 +1,293 @@
+"""The association policy every estimator uses: one decision per sighting, typed, with
+the reason for every sighting that is not used.
+
+An estimator supplies its *candidates* (the map landmarks it could pair a sighting with,
+each with the source id it was created from, when scans carry ids) and a ``Predictor``
+that gives their predicted measurements and covariances ``H P H^T``; the policy decides,
+by the scan's ids or geometrically (JCBB or gated nearest neighbour), and returns a
+``ScanAssociation``: for each sighting a ``Decision`` (matched / new / rejected /
+ambiguous), the candidate it matched, and why a sighting was not used. Estimators record
+every decision (``datasets.estimate.EstimateRecorder.association``), so no estimator can
+drop a sighting silently, and a comparison never depends on who wrote which gate.
+
+Geometric association (Neira and Tardos 2001): candidates individually compatible with
+some sighting at ``gate_probability`` enter JCBB with their *joint* predicted covariance;
+a sighting left unpaired starts a new landmark only when it lies outside every candidate's
+gate at the looser ``new_landmark_probability`` (at the association gate, 1 % of true
+sightings fall outside their own landmark's gate and would otherwise become duplicates);
+between the two gates it is *ambiguous*: neither used nor mapped.
+
+With ids: a sighting pairs with the candidate created from the same id; a known id whose
+sighting falls outside the ``id_gate_probability`` chi-square gate is *rejected*, and the
+same id twice in one scan keeps its first sighting.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, replace
+from typing import Literal, Protocol
+
+import numpy as np
+
+from datasets.errors import InputError
+from datasets.estimate import AssociationDecision
+from datasets.estimator_options import AssociationOptions
+from filters.association.compatibility import chi2_gate, individual_compatibility
+from filters.association.jcbb import (
+    AssociationResult,
+    associate_jcbb,
+    associate_nearest_neighbour,
+)
+
+Decision = AssociationDecision
+"""The decision vocabulary lives in ``datasets`` (it crosses into the metrics)."""
+
+
+class Reason(enum.StrEnum):
+    """Why a sighting was not used (the shared ones; estimators may add their own text)."""
+
+    OUTSIDE_ID_GATE = "outside the id gate"
+    REPEATED_ID = "id repeated in the scan"
+    NOT_IN_HYPOTHESIS = "compatible, but not in the jointly compatible hypothesis"
+    BETWEEN_GATES = "outside the association gate, inside the new-landmark gate"
+    NOT_FINITE = "non-finite point or covariance"
+    DUPLICATE_SIGHTING = "compatible with another new sighting of the same scan"
+
+
+Mode = Literal["ids", "jcbb", "nearest"]
+
+
+class Predictor(Protocol):
+    """Predicted measurements of candidate landmarks, from the estimator's current belief."""
+
+    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(predicted (n, d), marginal predicted covariances ``H_i P H_i^T`` (n, d, d))."""
+
+    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(predicted (n, d), joint predicted covariance ``H P H^T`` (n d, n d))."""
+
+
+@dataclass(frozen=True)
+class ScanAssociation:
+    """The decisions for one scan's sightings.
+
+    Attributes:
+        mode: how it was decided (``ids``, ``jcbb``, ``nearest``).
+        decisions: one ``Decision`` per sighting, length k.
+        candidates: the matched candidate's index per sighting, shape (k,), -1 unless matched.
+        reasons: why each sighting was not used ("" for matched and new), length k.
+        individual_nis: ``D^2`` of each matched pair on its own (d dof), shape (k,), NaN
+            otherwise.
+        search: the JCBB / nearest-neighbour result (nodes, truncation), None with ids.
+    """
+
+    mode: Mode
+    decisions: tuple[Decision, ...]
+    candidates: np.ndarray
+    reasons: tuple[str, ...]
+    individual_nis: np.ndarray
+    search: AssociationResult | None = None
+
+    def rows(self, decision: Decision) -> np.ndarray:
+        """Indices of the sightings with ``decision``, increasing."""
+        return np.array([j for j, d in enumerate(self.decisions) if d == decision], dtype=int)
+
+    def count(self, decision: Decision) -> int:
+        return sum(1 for d in self.decisions if d == decision)
+
+    def overrule(
+        self, rows: np.ndarray | list[int], decision: Decision, reason: str
+    ) -> ScanAssociation:
+        """The same association with ``rows`` re-decided (an estimator's own constraint,
+        e.g. no new landmark before the map is anchored), the reason kept."""
+        decisions = list(self.decisions)
+        reasons = list(self.reasons)
+        candidates = self.candidates.copy()
+        nis = self.individual_nis.copy()
+        for j in rows:
+            decisions[int(j)] = decision
+            reasons[int(j)] = reason
+            if decision != Decision.MATCHED:
+                candidates[int(j)] = -1
+                nis[int(j)] = np.nan
+        return replace(
+            self,
+            decisions=tuple(decisions),
+            reasons=tuple(reasons),
+            candidates=candidates,
+            individual_nis=nis,
+        )
+
+
+def _empty(mode: Mode, count: int) -> ScanAssociation:
+    return ScanAssociation(
+        mode,
+        (Decision.NEW,) * count,
+        np.full(count, -1, dtype=int),
+        ("",) * count,
+        np.full(count, np.nan),
+    )
+
+
+class AssociationPolicy:
+    """Decides every sighting of a scan (module docstring) under ``AssociationOptions``."""
+
+    def __init__(self, options: AssociationOptions, dimension: int) -> None:
+        self.options = options
+        self.dimension = dimension
+
+    def mode(self, scan_ids: np.ndarray | None, t: float) -> Mode:
+        """``ids`` when the options and the scan allow it, else the geometric method."""
+        method = self.options.association
+        if method == "ids" and scan_ids is None:
+            raise InputError(
+                f"association=ids but the landmark scan at t={t:.6f} s has no ids "
+                "(use association=jcbb or auto)"
+            )
+        if method == "auto":
+            return "ids" if scan_ids is not None else "jcbb"
+        return method
+
+    # ------------------------------------------------------------------ by ids
+    def by_ids(
+        self,
+        scan_ids: np.ndarray,
+        measured: np.ndarray,
+        measured_cov: np.ndarray,
+        candidate_ids: np.ndarray,
+        predictor: Predictor,
+    ) -> ScanAssociation:
+        """Pair each sighting with the candidate of the same source id; gate the pairs.
+
+        Args:
+            scan_ids: source id of each sighting (k,).
+            measured: (k, d). measured_cov: (k, d, d).
+            candidate_ids: source id of each candidate (m,).
+            predictor: predictions of the candidates (only the paired ones are asked for).
+        """
+        scan_ids = np.asarray(scan_ids, dtype=int)
+        k = len(scan_ids)
+        result = _empty("ids", k)
+        decisions, reasons = list(result.decisions), list(result.reasons)
+        candidates = result.candidates
+        index_of = {
+            int(source): index for index, source in enumerate(np.asarray(candidate_ids, int))
+        }
+        seen: set[int] = set()
+        for j, source in enumerate(scan_ids):
+            source = int(source)
+            if source in seen:
+                decisions[j], reasons[j] = Decision.REJECTED, Reason.REPEATED_ID.value
+                continue
+            seen.add(source)
+            if source in index_of:
+                decisions[j], candidates[j] = Decision.MATCHED, index_of[source]
+        paired = np.array([j for j in range(k) if decisions[j] == Decision.MATCHED], dtype=int)
+        nis = np.full(k, np.nan)
+        if paired.size:
+            predicted, blocks = predictor.individual(candidates[paired])
+            own = _pair_distances(measured[paired], measured_cov[paired], predicted, blocks)
+            nis[paired] = own
+            if self.options.id_gate_probability is not None:
+                gate = chi2_gate(self.dimension, self.options.id_gate_probability)
+                for j, distance in zip(paired, own, strict=True):
+                    if not distance < gate:
+                        decisions[j], reasons[j] = Decision.REJECTED, Reason.OUTSIDE_ID_GATE.value
+                        candidates[j] = -1
+                        nis[j] = np.nan
+        return ScanAssociation("ids", tuple(decisions), candidates, tuple(reasons), nis)
+
+    # ------------------------------------------------------------------ geometric
+    def by_geometry(
+        self,
+        measured: np.ndarray,
+        measured_cov: np.ndarray,
+        candidate_count: int,
+        predictor: Predictor,
+        mode: Mode = "jcbb",
+    ) -> ScanAssociation:
+        """JCBB (or gated nearest neighbour) against ``candidate_count`` candidates.
+
+        Args:
+            measured: (k, d). measured_cov: (k, d, d).
+            candidate_count: m; the predictor answers for indices 0..m-1.
+            mode: ``jcbb`` or ``nearest``.
+        """
+        k, d = np.asarray(measured).shape
+        if k == 0 or candidate_count == 0:
+            return _empty(mode, k)
+        predicted, blocks = predictor.individual(np.arange(candidate_count))
+        distances = individual_compatibility(measured, measured_cov, predicted, blocks)
+        gated = np.flatnonzero(
+            (distances < chi2_gate(d, self.options.gate_probability)).any(axis=0)
+        )
+        near = (distances < chi2_gate(d, self.options.new_landmark_probability)).any(axis=1)
+        decisions = [Decision.NEW if not near[j] else Decision.AMBIGUOUS for j in range(k)]
+        reasons = ["" if not near[j] else Reason.BETWEEN_GATES.value for j in range(k)]
+        candidates = np.full(k, -1, dtype=int)
+        nis = np.full(k, np.nan)
+        search = None
+        if gated.size:
+            subset_predicted, subset_joint = predictor.joint(gated)
+            if mode == "nearest":
+                search = associate_nearest_neighbour(
+                    measured,
+                    measured_cov,
+                    subset_predicted,
+                    subset_joint,
+                    gate_probability=self.options.gate_probability,
+                )
+            else:
+                search = associate_jcbb(
+                    measured,
+                    measured_cov,
+                    subset_predicted,
+                    subset_joint,
+                    gate_probability=self.options.gate_probability,
+                    max_nodes=self.options.max_jcbb_nodes,
+                )
+            for j in range(k):
+                if search.assignments[j] >= 0:
+                    decisions[j], reasons[j] = Decision.MATCHED, ""
+                    candidates[j] = gated[search.assignments[j]]
+                    nis[j] = search.individual_nis[j]
+                elif search.candidate_counts[j] > 0:
+                    decisions[j], reasons[j] = Decision.AMBIGUOUS, Reason.NOT_IN_HYPOTHESIS.value
+        return ScanAssociation(mode, tuple(decisions), candidates, tuple(reasons), nis, search)
+
+    def distinct_new(
+        self, measured: np.ndarray, measured_cov: np.ndarray, association: ScanAssociation
+    ) -> ScanAssociation:
+        """Reject a new sighting compatible with an earlier new sighting of the same scan
+        (a corner detected twice must not become two landmarks)."""
+        kept: list[int] = []
+        duplicates: list[int] = []
+        gate = chi2_gate(self.dimension, self.options.gate_probability)
+        for j in association.rows(Decision.NEW):
+            for i in kept:
+                difference = measured[j] - measured[i]
+                if (
+                    difference @ np.linalg.solve(measured_cov[j] + measured_cov[i], difference)
+                    < gate
+                ):
+                    duplicates.append(int(j))
+                    break
+            else:
+                kept.append(int(j))
+        if not duplicates:
+            return association
+        return association.overrule(duplicates, Decision.REJECTED, Reason.DUPLICATE_SIGHTING.value)
+
+
+def _pair_distances(
+    measured: np.ndarray, measured_cov: np.ndarray, predicted: np.ndarray, blocks: np.ndarray
+) -> np.ndarray:
+    """``D^2`` of each sighting with its own prediction (n,)."""
+    total = np.asarray(measured_cov, float) + np.asarray(blocks, float)
+    innovation = np.asarray(measured, float) - np.asarray(predicted, float)
+    try:
+        solved = np.linalg.solve(total, innovation[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return np.full(len(innovation), np.inf)
+    return np.einsum("ni,ni->n", innovation, solved)
