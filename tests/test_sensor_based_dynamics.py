@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 from scipy.linalg import expm
@@ -13,7 +15,7 @@ from filters.sensor_based.dynamics import (
     propagate,
     skew_rate,
 )
-from filters.sensor_based.update import kalman_update
+from filters.sensor_based.update import selection_update
 
 NOISE = ProcessNoise(
     velocity_m_s=0.1, gyro_bias_rad_s=1e-4, landmark_m=0.05, direction=0.01, gyro_noise_density=2e-3
@@ -215,6 +217,14 @@ def test_gyro_noise_enters_every_landmark_fully_correlated() -> None:
     assert np.allclose(block, 0.1 * NOISE.gyro_noise_density**2 * np.outer(g, g))
 
 
+@dataclass(frozen=True)
+class UpdateResult:
+    """Per-landmark NIS and dof, as the test has always read them."""
+
+    nis: np.ndarray
+    dof: np.ndarray
+
+
 def test_kalman_update_matches_textbook_joseph_form() -> None:
     rng = np.random.default_rng(4)
     n = 9
@@ -226,9 +236,11 @@ def test_kalman_update_matches_textbook_joseph_form() -> None:
     h[np.arange(4), indices] = 1.0
     r = np.diag([0.1, 0.2, 0.3, 0.4])
     z = rng.normal(size=4)
-    x_post, cov_post, result = kalman_update(
-        x, cov, indices, z, r, [np.array([0, 1]), np.array([2, 3])]
+    cov_post = cov.copy()
+    x_post, outcome = selection_update(
+        x, cov_post, indices, z, r, [np.array([0, 1]), np.array([2, 3])]
     )
+    result = UpdateResult(outcome.innovation.group_nis, outcome.innovation.group_dof)
     s = h @ cov @ h.T + r
     k = cov @ h.T @ np.linalg.inv(s)
     joseph = (np.eye(n) - k @ h) @ cov @ (np.eye(n) - k @ h).T + k @ r @ k.T

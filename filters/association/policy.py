@@ -119,6 +119,35 @@ class ScanAssociation:
             individual_nis=nis,
         )
 
+    def relabelled(self, labels: np.ndarray) -> ScanAssociation:
+        """The same decisions with every matched candidate index ``i`` replaced by
+        ``labels[i]`` (e.g. from a subset's index to the map id)."""
+        candidates = self.candidates.copy()
+        matched = candidates >= 0
+        candidates[matched] = np.asarray(labels, dtype=int)[candidates[matched]]
+        return replace(self, candidates=candidates)
+
+    def embedded(self, rows: np.ndarray, total: int, reason: str) -> ScanAssociation:
+        """The association of a whole scan of ``total`` sightings of which this one decided
+        ``rows``; the others are rejected with ``reason`` (e.g. non-finite points)."""
+        rows = np.asarray(rows, dtype=int)
+        if len(rows) == total:
+            return self
+        decisions = [Decision.REJECTED] * total
+        reasons = [str(reason)] * total
+        candidates = np.full(total, -1, dtype=int)
+        nis = np.full(total, np.nan)
+        for local, j in enumerate(rows):
+            decisions[j], reasons[j] = self.decisions[local], self.reasons[local]
+            candidates[j], nis[j] = self.candidates[local], self.individual_nis[local]
+        return replace(
+            self,
+            decisions=tuple(decisions),
+            candidates=candidates,
+            reasons=tuple(reasons),
+            individual_nis=nis,
+        )
+
 
 def _empty(mode: Mode, count: int) -> ScanAssociation:
     return ScanAssociation(

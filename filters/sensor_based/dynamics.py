@@ -122,7 +122,7 @@ def rotation_flow(generator: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndar
     return identity + a * generator + b * squared, dt * identity + b * generator + c * squared
 
 
-def propagate(
+def propagate_in_place(
     x: np.ndarray,
     covariance: np.ndarray,
     is_position: np.ndarray,
@@ -133,7 +133,7 @@ def propagate(
     noise: ProcessNoise,
     dimension: int,
     discretization: Discretization = "euler",
-) -> tuple[np.ndarray, np.ndarray]:
+) -> np.ndarray:
     """One prediction step (Guerreiro et al. eq. (10) and section IV-A).
 
     ``"euler"`` is eq. (10) as printed: ``x_{k+1} = x_k + Ts f(x_k)``,
@@ -167,10 +167,12 @@ def propagate(
         discretization: "euler" (eq. (10)) or "exact".
 
     Returns:
-        (x_next (n,), covariance_next (n, n)), the covariance symmetrised.
+        x_next (n,); ``covariance`` is replaced by ``F Sigma F^T + Xi`` in place.
 
-    The product ``F Sigma F^T`` exploits the block structure of ``A`` (only feature rows,
-    each touching the vehicle columns and its own block): O(n^2) instead of O(n^3).
+    ``F Sigma F^T`` is evaluated block by block (``_transform_in_place``): the vehicle rows of
+    F are the identity and each feature row block touches only the vehicle columns and its
+    own block, so the product costs O(n^2) with a few n x n temporaries and no copy of the
+    whole matrix per factor.
     """
     d = dimension
     r = rate_dimension(d)
@@ -217,22 +219,108 @@ def propagate(
     else:
         raise ValueError(f"unknown discretization {discretization!r}")
 
-    def apply_phi(matrix: np.ndarray) -> np.ndarray:
-        """F @ matrix for matrix (n, k): vehicle rows unchanged, feature rows mixed."""
-        out = matrix.copy()
-        if count:
-            feature_rows = matrix[nv:].reshape(count, d, -1)
-            out[nv:] = phi_vehicle.reshape(count * d, nv) @ matrix[:nv] + np.matmul(
-                phi_own, feature_rows
-            ).reshape(count * d, -1)
-        return out
+    diagonal, gyro_factor = process_noise_factors(features, is_position, noise, dt, d)
+    if count:
+        _transform_in_place(
+            covariance, nv, phi_vehicle.reshape(count * d, nv), phi_own, gyro_factor
+        )
+    index = np.arange(diagonal.size)
+    covariance[index, index] += diagonal
+    # symmetrise (round-off only: every term above is symmetric)
+    covariance += covariance.T
+    covariance *= 0.5
+    return x_next
 
-    predicted = apply_phi(apply_phi(covariance).T)
-    add_process_covariance(predicted, features, is_position, noise, dt, d)
-    # symmetrise in place (round-off only: every term above is symmetric)
-    predicted += predicted.T
-    predicted *= 0.5
+
+def propagate(
+    x: np.ndarray,
+    covariance: np.ndarray,
+    is_position: np.ndarray,
+    visible_measurements: np.ndarray,
+    visible: np.ndarray,
+    rate: np.ndarray,
+    dt: float,
+    noise: ProcessNoise,
+    dimension: int,
+    discretization: Discretization = "euler",
+) -> tuple[np.ndarray, np.ndarray]:
+    """``propagate_in_place`` on a copy: (x_next (n,), covariance_next (n, n))."""
+    predicted = np.array(covariance, dtype=float, copy=True)
+    x_next = propagate_in_place(
+        x,
+        predicted,
+        is_position,
+        visible_measurements,
+        visible,
+        rate,
+        dt,
+        noise,
+        dimension,
+        discretization,
+    )
     return x_next, predicted
+
+
+def _transform_in_place(
+    covariance: np.ndarray,
+    nv: int,
+    vehicle: np.ndarray,
+    own: np.ndarray,
+    noise_factor: np.ndarray,
+) -> None:
+    """``P <- F P F^T + [0; N] [0; N]^T`` for ``F = [[I, 0], [V, E]]``, ``E = blockdiag(own)``.
+
+    With ``P = [[A, B], [B^T, C]]`` and ``G = B E^T``: the vehicle block A is unchanged,
+    ``B' = A V^T + G`` and ``C' = E C E^T + V B' + (V G)^T + N N^T``. ``E C E^T`` is
+    ``E (E C)^T`` (C is symmetric): two batched products of the d x d blocks; the three
+    low-rank terms are one product ``[V, G^T, N] [B'; V^T; N^T]``, so the feature block is
+    written once.
+
+    Args:
+        covariance: P (n, n), updated in place.
+        nv: size of the vehicle block.
+        vehicle: V (L, nv), the feature rows' vehicle columns of F.
+        own: E's diagonal blocks (F, d, d), L = F d.
+        noise_factor: N (L, k), the feature block's low-rank process noise (k may be 0).
+    """
+    count, d, _ = own.shape
+    size = count * d
+    block_b = covariance[:nv, nv:]
+    features = covariance[nv:, nv:]
+    # G = B E^T, column block by column block: (count, nv, d) -> (nv, L)
+    g = np.matmul(block_b.reshape(nv, count, d).transpose(1, 0, 2), own.transpose(0, 2, 1))
+    g = g.transpose(1, 0, 2).reshape(nv, size)
+    new_b = covariance[:nv, :nv] @ vehicle.T + g
+    rows = np.matmul(own, features.reshape(count, d, size))  # E C, (count, d, L)
+    sandwich = np.matmul(own, rows.reshape(size, size).T.reshape(count, d, size))  # E (E C)^T
+    left = np.hstack([vehicle, g.T, noise_factor])
+    right = np.vstack([new_b, vehicle.T, noise_factor.T])
+    np.add(sandwich.reshape(size, size), left @ right, out=features)
+    block_b[...] = new_b
+    covariance[nv:, :nv] = new_b.T
+
+
+def process_noise_factors(
+    features: np.ndarray, is_position: np.ndarray, noise: ProcessNoise, dt: float, dimension: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``Xi_F`` of one step of length ``dt`` as ``diag(diagonal) + [0; N] [0; N]^T``
+    (see ``process_covariance``): returns (diagonal (n,), N (L, r)) with
+    ``N = sqrt(Ts) sigma_g G``.
+    """
+    d = dimension
+    r = rate_dimension(d)
+    count = features.shape[0]
+    diagonal = dt * np.concatenate(
+        [
+            np.broadcast_to(np.asarray(noise.velocity_m_s, dtype=float) ** 2, (d,)),
+            np.full(r, noise.gyro_bias_rad_s**2),
+            np.repeat(np.where(is_position, noise.landmark_m**2, noise.direction**2), d),
+        ]
+    )
+    if count == 0 or noise.gyro_noise_density <= 0.0:
+        return diagonal, np.zeros((count * d, 0))
+    factor = np.sqrt(dt) * noise.gyro_noise_density * bias_coupling(features).reshape(count * d, r)
+    return diagonal, factor
 
 
 def process_covariance(
@@ -245,35 +333,7 @@ def process_covariance(
     enters every feature's derivative as ``M(f_i) n``; continuous density ``sigma_g``).
     """
     nv = dimension + rate_dimension(dimension)
-    count = features.shape[0]
-    q = np.zeros((nv + count * dimension, nv + count * dimension))
-    add_process_covariance(q, features, is_position, noise, dt, dimension)
+    diagonal, factor = process_noise_factors(features, is_position, noise, dt, dimension)
+    q = np.diag(diagonal)
+    q[nv:, nv:] += factor @ factor.T
     return q
-
-
-def add_process_covariance(
-    covariance: np.ndarray,
-    features: np.ndarray,
-    is_position: np.ndarray,
-    noise: ProcessNoise,
-    dt: float,
-    dimension: int,
-) -> None:
-    """``covariance += Xi_F`` in place (see ``process_covariance``), without an n x n temporary
-    for the diagonal part."""
-    d = dimension
-    r = rate_dimension(d)
-    nv = d + r
-    count = features.shape[0]
-    diagonal = np.concatenate(
-        [
-            np.broadcast_to(np.asarray(noise.velocity_m_s, dtype=float) ** 2, (d,)),
-            np.full(r, noise.gyro_bias_rad_s**2),
-            np.repeat(np.where(is_position, noise.landmark_m**2, noise.direction**2), d),
-        ]
-    )
-    index = np.arange(diagonal.size)
-    covariance[index, index] += dt * diagonal
-    if count and noise.gyro_noise_density > 0.0:
-        g = bias_coupling(features).reshape(count * d, r)
-        covariance[nv:, nv:] += (dt * noise.gyro_noise_density**2) * (g @ g.T)

@@ -3,16 +3,17 @@
 Robocentric LTV Kalman filter: state = body-frame velocity, rate-gyro bias and body-frame
 landmarks (optionally with line directions); inputs = rate gyro (``GyroSample``, or the
 gyro of an ``ImuSample``: the accelerometer is unused) and ``LandmarkScan`` (body-frame
-points). Prediction at every gyro sample (``dynamics.propagate``, eq. (10)), association by
-JCBB (``filters.association``) or by the scan's ids, Kalman update (``update``), landmark
+points). Prediction at every gyro sample (``dynamics.propagate_in_place``, eq. (10)),
+association by the shared policy (``filters.association``: the scan's ids, or JCBB), the
+section IV-B update through the shared Kalman core (``update``), landmark
 management (``landmark_management``), loop closing between the current and old landmark
 sets (``loop_closing``, section IV-C) and the Earth-frame trajectory derived from the map
 history (``earth_frame``).
 
-Association uses only the current set I_cur (landmarks seen within
+Geometric association uses only the current set I_cur (landmarks seen within
 ``association_window_s``), as the paper does; an unassociated measurement starts a new
 landmark only when it lies outside every current landmark's gate even at
-``new_landmark_gate_probability`` (otherwise it is ambiguous and recorded as rejected).
+``new_landmark_probability`` (otherwise it is ambiguous: recorded, neither used nor mapped).
 
 Discretization: eq. (10) is forward Euler; the default solves the same LTV model exactly
 over each step with the inputs held (``dynamics.propagate``), because Euler's ``I - Ts S(w)``
@@ -31,12 +32,13 @@ paper and a corner's ``omega_dot ~ 0.1 rad/s^2`` is a bias-sized error of 5e-3 r
 ``"hold"`` gives the literal scheme. A scan between gyro samples is reached with the held
 rate; the rest of that interval uses the average once the next sample arrives.
 
-Exported (DESIGN.md): ``velocity`` (body frame), ``gyro_bias`` and ``landmarks`` snapshots
-(body frame, the filter's own map ids) after every scan; ``pose`` is the Earth-frame
+Exported (DESIGN.md): ``velocity`` (body frame) and ``gyro_bias`` after every scan,
+``landmarks`` snapshots (body frame, the filter's own map ids) every
+``snapshot_interval_s``; ``pose`` is the Earth-frame
 trajectory *derived* from consecutive body-frame maps (no covariance; ``earth_frame=false``
 turns it off); extras ``vehicle_t``/``vehicle_state``/``vehicle_covariance`` carry the joint
-[v, b] block for the vehicle NEES. NIS: one value per associated landmark (eq. (11)),
-dof = its block size.
+[v, b] block for the vehicle NEES. NIS: the stacked innovation of every scan, and one
+value per associated landmark (eq. (11)), dof = its block size.
 
 Measurement noise: the filter uses each scan's stated covariances. (The simulator gives
 the first-order polar-to-Cartesian ``J diag(sigma_rho^2, sigma_alpha^2) J^T``; the paper's
@@ -53,13 +55,16 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
-from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
+from datasets.estimate import Estimate, EstimateRecorder
+from datasets.estimator_options import AssociationOptions, RecordingOptions
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, so3_exp
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
-from filters.association import associate_jcbb, chi2_gate, individual_compatibility
-from filters.sensor_based.dynamics import ProcessNoise, propagate, rate_dimension
+from datasets.stream_clock import StreamClock
+from filters import kalman
+from filters.association import AssociationPolicy, Decision, Reason, ScanAssociation
+from filters.sensor_based.dynamics import ProcessNoise, propagate_in_place, rate_dimension
 from filters.sensor_based.earth_frame import EarthFrameTracker
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
 from filters.sensor_based.loop_closing import (
@@ -68,13 +73,14 @@ from filters.sensor_based.loop_closing import (
     find_loop_closure,
 )
 from filters.sensor_based.state import FilterState
-from filters.sensor_based.update import kalman_update
+from filters.sensor_based.update import selection_update
 
 DEG = math.pi / 180.0
 
 
-class SensorBasedConfig(BaseModel):
-    """Options of the sensor-based filter (defaults: the paper's section V where it gives one)."""
+class SensorBasedConfig(AssociationOptions, RecordingOptions):
+    """Options of the sensor-based filter (defaults: the paper's section V where it gives one;
+    association and snapshot options: the shared vocabulary of ``datasets.estimator_options``)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -115,23 +121,6 @@ class SensorBasedConfig(BaseModel):
         None,
         gt=0,
         description="prior bias std; None: the dataset's stated value (0.05 rad/s if none)",
-    )
-    association: Literal["jcbb", "ids"] = Field(
-        "ids",
-        description="ids: use the scan's ids when it has them, JCBB otherwise (as every estimator "
-        "here, so `--data ids=false` decides for all); jcbb: always JCBB, ignoring ids",
-    )
-    gate_probability: float = Field(
-        0.99, gt=0, lt=1, description="chi-square gate probability (individual and joint)"
-    )
-    new_landmark_gate_probability: float = Field(
-        0.9999,
-        gt=0,
-        lt=1,
-        description="an unassociated measurement starts a landmark only if outside every landmark's gate at this looser probability",
-    )
-    max_jcbb_nodes: int = Field(
-        20_000, ge=1, description="cap on JCBB interpretation-tree nodes per scan"
     )
     association_window_s: float = Field(
         20.0,
@@ -203,7 +192,6 @@ class SensorBasedConfig(BaseModel):
         True,
         description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose",
     )
-    snapshot_every: int = Field(1, ge=1, description="record a landmark snapshot every N scans")
 
 
 class SensorBasedSlam:
@@ -268,7 +256,8 @@ class SensorBasedSlam:
                 max_landmarks=config.max_landmarks,
             )
         )
-        self.recorder = EstimateRecorder(d)
+        self.recorder = EstimateRecorder(d, config.snapshot_interval_s)
+        self.policy = AssociationPolicy(config, d)
         start_rotation, start_position = np.eye(d), np.zeros(d)
         if start is not None:
             start_rotation = (
@@ -291,10 +280,11 @@ class SensorBasedSlam:
         self._motion_rotation = np.eye(d)  # the filter's own motion since the last scan (fallback)
         self._motion_translation = np.zeros(d)
         self.t: float | None = None if start is None else float(start.t)
+        self.clock = StreamClock(self.name, self.t)
         self.rate: np.ndarray | None = None
         self.scan_count = 0
         self.skipped: dict[str, int] = {"nan_rate": 0, "nan_points": 0, "scan_without_rate": 0}
-        self.true_to_map: dict[int, int] = {}
+        self.source_of: dict[int, int] = {}  # map id -> the scan id it was created from
         self._record_vehicle(self.t if self.t is not None else 0.0)
         self._record_pose(self.t if self.t is not None else 0.0)
 
@@ -307,6 +297,7 @@ class SensorBasedSlam:
 
     # ------------------------------------------------------------------ inputs
     def process(self, measurement: Measurement) -> None:
+        self.clock.advance(measurement.t, type(measurement).__name__)
         if isinstance(measurement, GyroSample):
             self._rate_sample(measurement.t, np.asarray(measurement.rate, dtype=float).ravel())
         elif isinstance(measurement, ImuSample):
@@ -336,16 +327,10 @@ class SensorBasedSlam:
         self.rate = rate
 
     def _propagate_to(self, t: float, rate: np.ndarray | None = None) -> None:
-        if not np.isfinite(t):
-            raise InputError(f"{self.name}: non-finite time stamp after t={self.t}")
         if self.t is None:
             self.t = float(t)
             return
-        dt = t - self.t
-        if dt < 0:
-            raise InputError(
-                f"{self.name}: time goes backwards at t={t:.6f} s (previous {self.t:.6f} s)"
-            )
+        dt = t - self.t  # >= 0: the stream clock has checked the order
         if dt > self.config.max_gap_s:
             raise InputError(
                 f"{self.name}: gap of {dt:.3f} s before t={t:.6f} s exceeds max_gap_s={self.config.max_gap_s}"
@@ -358,7 +343,7 @@ class SensorBasedSlam:
         state = self.state
         for _ in range(steps):
             self._accumulate_motion(rate, dt / steps)
-            state.x, state.covariance = propagate(
+            state.x = propagate_in_place(
                 state.x,
                 state.covariance,
                 state.is_position,
@@ -421,95 +406,29 @@ class SensorBasedSlam:
         if self.config.use_directions and scan.directions is not None:
             directions = np.asarray(scan.directions, dtype=float).reshape(k, -1, d)
 
-        assignment = np.full(k, -1, dtype=int)  # map id per measurement
-        is_new = np.zeros(k, dtype=bool)
-        ids, positions, joint = self.state.landmark_positions()
-        usable_idx = np.flatnonzero(usable)
-        if self.config.association == "ids" and scan.ids is not None:
-            for j in usable_idx:
-                landmark_id = self.true_to_map.get(int(scan.ids[j]))
-                if landmark_id is not None and landmark_id in self.manager.records:
-                    assignment[j] = landmark_id
-            unassigned_new = [j for j in usable_idx if assignment[j] < 0]
-        else:
-            current = (
-                self.manager.recently_seen(ids, t, self.config.association_window_s)
-                if len(ids)
-                else np.zeros(0, bool)
-            )
-            cur_idx = np.flatnonzero(current)
-            cur_rows = (cur_idx[:, None] * d + np.arange(d)[None, :]).ravel()
-            result = associate_jcbb(
-                points[usable_idx],
-                covs[usable_idx],
-                positions[cur_idx],
-                joint[np.ix_(cur_rows, cur_rows)],
-                gate_probability=self.config.gate_probability,
-                max_nodes=self.config.max_jcbb_nodes,
-            )
-            for local, j in enumerate(usable_idx):
-                if result.assignments[local] >= 0:
-                    assignment[j] = int(ids[cur_idx[result.assignments[local]]])
-            # New landmark only when compatible with no landmark even at a looser gate: at
-            # the association gate 1 % of true measurements fall outside their own
-            # landmark's gate and would otherwise become duplicates.
-            near = np.zeros(len(usable_idx), dtype=bool)
-            if len(cur_idx) and len(usable_idx):
-                distances = individual_compatibility(
-                    points[usable_idx],
-                    covs[usable_idx],
-                    positions[cur_idx],
-                    joint[np.ix_(cur_rows, cur_rows)],
-                )
-                near = (distances < chi2_gate(d, self.config.new_landmark_gate_probability)).any(
-                    axis=1
-                )
-            unassigned_new = [
-                j
-                for local, j in enumerate(usable_idx)
-                if result.assignments[local] < 0 and not near[local]
-            ]
-            if result.truncated:
-                self.recorder.event(t, "jcbb_truncated", nodes=result.nodes)
-
+        association = self._associate(t, scan.ids, points, covs, usable)
         self.state.visible[:] = False  # I_O is redefined by every scan (section IV-B)
-        self._update(t, points, covs, directions, assignment)
-        if not (self.config.association == "ids" and scan.ids is not None):
-            unassigned_new = self._distinct(
-                points, covs, unassigned_new
-            )  # ids are distinct already
-        for j in unassigned_new:
+        assignment = self._update(t, points, covs, directions, association)
+        for j in association.rows(Decision.NEW):
             landmark_id = self._add_landmark(
                 t, points[j], covs[j], None if directions is None else directions[j]
             )
             assignment[j] = landmark_id
-            is_new[j] = True
-            if scan.ids is not None and self.config.association == "ids":
-                self.true_to_map[int(scan.ids[j])] = landmark_id
-        for j in range(k):
-            if is_new[j]:
-                decision = AssociationDecision.NEW
-            elif assignment[j] >= 0:
-                decision = AssociationDecision.MATCHED
-            else:
-                decision = AssociationDecision.REJECTED
-            self.recorder.association(t, j, int(assignment[j]), decision)
+            if association.mode == "ids":
+                self.source_of[landmark_id] = int(scan.ids[j])
+        for j, decision in enumerate(association.decisions):
+            self.recorder.association(t, j, int(assignment[j]), decision, association.reasons[j])
 
-        seen_ids = set(int(a) for a in assignment if a >= 0)
+        seen_ids = {int(a) for a in assignment if a >= 0}
         state = self.state
-        ids, positions, joint = state.landmark_positions()
-        blocks = (
-            np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))])
-            if len(ids)
-            else np.zeros((0, d, d))
-        )
+        ids, positions = state.landmark_positions()
+        blocks = state.position_blocks()
         doomed = self.manager.after_scan(t, ids, np.isin(ids, list(seen_ids)), positions, blocks)
         if doomed:
             state.remove_landmarks(doomed)
             self.manager.removed(doomed)
-            self.true_to_map = {
-                key: value for key, value in self.true_to_map.items() if value not in set(doomed)
-            }
+            for landmark_id in doomed:
+                self.source_of.pop(landmark_id, None)
         if self.config.loop_closing and t - self._last_loop_search >= self.loop_policy.every_s:
             self._last_loop_search = t
             self._close_loops(t)
@@ -518,22 +437,18 @@ class SensorBasedSlam:
         self.recorder.extra("visible_landmarks", float(len(seen_ids)))
         self._record_vehicle(t)
         if self.earth is not None:
-            ids, positions, joint = state.landmark_positions()
-            blocks = (
-                np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))])
-                if len(ids)
-                else np.zeros((0, d, d))
-            )
+            ids, positions = state.landmark_positions()
+            blocks = state.position_blocks()
             self.earth.step(ids, positions, blocks, self._motion_rotation, self._motion_translation)
             self._motion_rotation, self._motion_translation = np.eye(d), np.zeros(d)
             self._record_pose(t)
-        if self.scan_count % self.config.snapshot_every == 0:
+        if self.recorder.snapshot_due(t):
             self.recorder.landmarks(self.landmark_map(t))
 
     def _close_loops(self, t: float) -> None:
         """Section IV-C: fuse current landmarks with their old duplicates; keep the old id."""
         state = self.state
-        ids, positions, joint = state.landmark_positions()
+        ids, positions = state.landmark_positions()
         if len(ids) < 2:
             return
         ages = np.array([t - self.manager.records[int(i)].last_seen_t for i in ids])
@@ -542,19 +457,19 @@ class SensorBasedSlam:
         if len(old):
             # Measured on the data: the true revisit on sim:guerreiro-loop pairs old landmarks
             # of std ~0.6 m; Victoria Park's false closures had 2-21 m (trees 5-10 m apart).
-            blocks = np.stack(
-                [
-                    joint[
-                        i * self.dimension : (i + 1) * self.dimension,
-                        i * self.dimension : (i + 1) * self.dimension,
-                    ]
-                    for i in old
-                ]
-            )
-            old = old[
-                np.sqrt(np.linalg.eigvalsh(blocks)[:, -1]) <= self.config.loop_max_old_sigma_m
-            ]
-        pairs = find_loop_closure(positions, joint, current, old, self.loop_policy)
+            largest = np.sqrt(np.linalg.eigvalsh(state.position_blocks(old))[:, -1])
+            old = old[largest <= self.config.loop_max_old_sigma_m]
+        if len(current) == 0 or len(old) == 0:
+            return
+        union = np.concatenate([current, old])  # only these landmarks' joint covariance
+        local = find_loop_closure(
+            positions[union],
+            state.position_covariance(union),
+            np.arange(len(current)),
+            np.arange(len(current), len(union)),
+            self.loop_policy,
+        )
+        pairs = [(int(union[i]), int(union[j])) for i, j in local]
         if not pairs:
             return
         features = state.position_features()
@@ -572,30 +487,13 @@ class SensorBasedSlam:
             if state.visible[removed_feature]:
                 state.visible[kept_feature] = True
                 state.measured[kept_feature] = state.measured[removed_feature]
-            self.true_to_map = {
-                key: (kept if value == removed else value)
-                for key, value in self.true_to_map.items()
-            }
+            if removed in self.source_of:
+                self.source_of.setdefault(kept, self.source_of.pop(removed))
             fused.append([kept, removed])
         removed_ids = [removed for _, removed in fused]
         state.remove_landmarks(removed_ids)
         self.manager.removed(removed_ids)
         self.recorder.event(t, "loop_closure", pairs=fused)
-
-    def _distinct(self, points: np.ndarray, covs: np.ndarray, candidates: list[int]) -> list[int]:
-        """Drop measurements compatible with an earlier one of the same list (duplicate points)."""
-        kept: list[int] = []
-        gate = chi2_gate(self.dimension, self.config.gate_probability)
-        for j in candidates:
-            duplicate = False
-            for i in kept:
-                difference = points[j] - points[i]
-                if difference @ np.linalg.solve(covs[j] + covs[i], difference) < gate:
-                    duplicate = True
-                    break
-            if not duplicate:
-                kept.append(j)
-        return kept
 
     def _direction_cov(self, direction: np.ndarray) -> np.ndarray:
         """Covariance of a measured unit direction: sigma^2 across it, a small spread along it."""
@@ -618,16 +516,55 @@ class SensorBasedSlam:
         self.manager.created(landmark_id, t)
         return landmark_id
 
+    def _associate(
+        self,
+        t: float,
+        scan_ids: np.ndarray | None,
+        points: np.ndarray,
+        covs: np.ndarray,
+        usable: np.ndarray,
+    ) -> ScanAssociation:
+        """One decision per sighting (the shared policy): by ids against every landmark in
+        the state, else JCBB against the current set I_cur only (the paper's section IV-B);
+        non-finite sightings are rejected and counted."""
+        ids, positions = self.state.landmark_positions()
+        mode = self.policy.mode(scan_ids, t)
+        rows = np.flatnonzero(usable)
+        if mode == "ids":
+            sources = np.array([self.source_of.get(int(i), -1) for i in ids], dtype=int)
+            predictor = _LandmarkPredictor(self.state, np.arange(len(ids)))
+            found = self.policy.by_ids(scan_ids[rows], points[rows], covs[rows], sources, predictor)
+        else:
+            current = (
+                np.flatnonzero(self.manager.recently_seen(ids, t, self.config.association_window_s))
+                if len(ids)
+                else np.zeros(0, dtype=int)
+            )
+            predictor = _LandmarkPredictor(self.state, current)
+            found = self.policy.by_geometry(points[rows], covs[rows], len(current), predictor, mode)
+            found = self.policy.distinct_new(points[rows], covs[rows], found)
+            if found.search is not None and found.search.truncated:
+                self.recorder.event(t, "jcbb_truncated", nodes=found.search.nodes)
+            found = found.relabelled(current)  # candidate index -> landmark index
+        return found.relabelled(ids).embedded(rows, len(points), Reason.NOT_FINITE)
+
     def _update(
         self,
         t: float,
         points: np.ndarray,
         covs: np.ndarray,
         directions: np.ndarray | None,
-        assignment: np.ndarray,
-    ) -> None:
+        association: ScanAssociation,
+    ) -> np.ndarray:
+        """Section IV-B update of every matched landmark (with its direction features);
+        returns the map id per sighting (-1 unless matched)."""
         state = self.state
         d = self.dimension
+        assignment = np.where(
+            np.array([decision == Decision.MATCHED for decision in association.decisions]),
+            association.candidates,
+            -1,
+        )
         measured_features: list[int] = []
         values: list[np.ndarray] = []
         cov_blocks: list[np.ndarray] = []
@@ -661,30 +598,28 @@ class SensorBasedSlam:
                         cov_blocks.append(self._direction_cov(unit))
             groups.append(np.arange(start, len(values) * d))
         if not measured_features:
-            return
+            return assignment
         features = np.array(measured_features)
         indices = state.state_indices(features)
-        theta = np.zeros((len(values) * d, len(values) * d))
-        for index, block in enumerate(cov_blocks):
-            theta[index * d : index * d + d, index * d : index * d + d] = block
-        state.x, state.covariance, result = kalman_update(
+        theta = kalman.block_diagonal(np.stack(cov_blocks))
+        state.x, outcome = selection_update(
             state.x, state.covariance, indices, np.concatenate(values), theta, groups
         )
+        if outcome.innovation is not None:
+            found = outcome.innovation
+            self.recorder.innovation(t, found.nis, found.dof, found.group_nis, found.group_dof)
+        if outcome.correction is None:
+            self.recorder.event(t, "update_refused", reason=outcome.refused)
+            return assignment
         state.measured[features] = np.stack(values)
         state.visible[features] = True
-        for value, dof in zip(result.nis, result.dof):
-            self.recorder.nis(t, float(value), int(dof))
+        return assignment
 
     # ------------------------------------------------------------------ output
     def landmark_map(self, t: float) -> LandmarkMap:
         """The body-frame map now: ids, positions (L, d), marginal covariances (L, d, d)."""
-        d = self.dimension
-        ids, positions, joint = self.state.landmark_positions()
-        covs = (
-            np.stack([joint[i * d : i * d + d, i * d : i * d + d] for i in range(len(ids))])
-            if len(ids)
-            else np.zeros((0, d, d))
-        )
+        ids, positions = self.state.landmark_positions()
+        covs = self.state.position_blocks()
         return LandmarkMap(
             ids=ids.copy(),
             positions=positions.copy(),
@@ -761,3 +696,20 @@ class SensorBasedSlam:
             notes.append(f"skipped inputs: {self.skipped}")
         t = self.t if self.t is not None else 0.0
         return self.recorder.build(landmarks=self.landmark_map(t), notes=tuple(notes))
+
+
+class _LandmarkPredictor:
+    """The association ``Predictor`` of the robocentric map: a landmark's predicted
+    measurement is its own state (``y_i = x_i``, eq. (2)) and ``H P H^T`` its covariance."""
+
+    def __init__(self, state: FilterState, landmarks: np.ndarray) -> None:
+        self.state = state
+        self.landmarks = np.asarray(landmarks, dtype=int)  # candidate index -> landmark index
+
+    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        chosen = self.landmarks[np.asarray(indices, dtype=int)]
+        return self.state.landmark_positions()[1][chosen], self.state.position_blocks(chosen)
+
+    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        chosen = self.landmarks[np.asarray(indices, dtype=int)]
+        return self.state.landmark_positions()[1][chosen], self.state.position_covariance(chosen)

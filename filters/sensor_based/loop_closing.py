@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from datasets.estimator_options import DEFAULT_GATE_PROBABILITY, DEFAULT_MAX_JCBB_NODES
+from filters import kalman
 from filters.association import associate_jcbb
 
 
@@ -45,8 +47,8 @@ class LoopClosurePolicy:
     old_after_s: float = 60.0
     min_pairs: int = 3
     every_s: float = 2.0
-    gate_probability: float = 0.99
-    max_nodes: int = 20_000
+    gate_probability: float = DEFAULT_GATE_PROBABILITY
+    max_nodes: int = DEFAULT_MAX_JCBB_NODES
     unambiguous_only: bool = True
 
 
@@ -105,20 +107,24 @@ def find_loop_closure(
 def constraint_update(
     x: np.ndarray, covariance: np.ndarray, first_indices: np.ndarray, second_indices: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Kalman update with the noise-free constraint ``x[first] - x[second] = 0`` (section IV-C).
-
-    ``H = [.. I .. -I ..]``, ``Theta = 0``; Joseph form ``P - K HP - (K HP)^T + K S K^T``
-    with ``S = H P H^T`` (a tiny jitter keeps it invertible when both are already equal).
+    """Kalman update with the noise-free constraint ``x[first] - x[second] = 0`` (section IV-C),
+    through the shared core: ``H = [.. I .. -I ..]``, ``Theta`` a 1e-12 jitter that keeps S
+    invertible when both sides are already equal.
 
     Args:
-        x: (n,); covariance: (n, n); first_indices, second_indices: (m,) state indices.
+        x: (n,); covariance: (n, n), updated in place; first_indices, second_indices: (m,)
+            state indices.
+
+    Returns:
+        (posterior mean, the covariance (the same array, updated)); the mean is unchanged
+        when the core refuses the update.
     """
-    hp = covariance[first_indices] - covariance[second_indices]
-    s = hp[:, first_indices] - hp[:, second_indices]
-    s = 0.5 * (s + s.T) + 1e-12 * np.eye(len(first_indices))
-    gain = np.linalg.solve(s, hp).T
-    innovation = -(x[first_indices] - x[second_indices])
-    x_post = x + gain @ innovation
-    khp = gain @ hp
-    post = covariance - khp - khp.T + gain @ s @ gain.T
-    return x_post, 0.5 * (post + post.T)
+    m = len(first_indices)
+    jacobian = kalman.SparseJacobian(
+        np.concatenate([first_indices, second_indices]), np.hstack([np.eye(m), -np.eye(m)])
+    )
+    residual = -(x[first_indices] - x[second_indices])
+    outcome = kalman.update(covariance, residual, jacobian, 1e-12 * np.eye(m))
+    if outcome.correction is None:
+        return x, covariance
+    return x + outcome.correction, covariance

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from filters import kalman
 from filters.sensor_based.dynamics import rate_dimension
 
 
@@ -85,15 +86,25 @@ class FilterState:
     def direction_features(self, landmark_id: int) -> np.ndarray:
         return np.flatnonzero((self.owner == landmark_id) & ~self.is_position)
 
-    def landmark_positions(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(ids (L,), positions (L, d), joint covariance of all positions (L*d, L*d))."""
+    def landmark_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ids (L,), body-frame positions (L, d)), in state order."""
         features = self.position_features()
-        indices = self.state_indices(features)
-        return (
-            self.owner[features],
-            self.features[features],
-            self.covariance[np.ix_(indices, indices)],
-        )
+        return self.owner[features], self.features[features]
+
+    def position_blocks(self, landmarks: np.ndarray | None = None) -> np.ndarray:
+        """Marginal covariances (n, d, d) of the given landmarks' positions (indices into
+        ``landmark_ids``; all when None): only the diagonal blocks are gathered."""
+        features = self.position_features()
+        if landmarks is not None:
+            features = features[np.asarray(landmarks, dtype=int)]
+        rows = self.state_indices(features).reshape(-1, self.dimension)
+        return self.covariance[rows[:, :, None], rows[:, None, :]]
+
+    def position_covariance(self, landmarks: np.ndarray) -> np.ndarray:
+        """Joint covariance (n d, n d) of the given landmarks' positions (indices into
+        ``landmark_ids``)."""
+        indices = self.state_indices(self.position_features()[np.asarray(landmarks, dtype=int)])
+        return self.covariance[np.ix_(indices, indices)]
 
     # ------------------------------------------------------------------ edits
     def add_landmark(
@@ -119,14 +130,11 @@ class FilterState:
                 kinds.append(False)
         landmark_id = self._next_id
         self._next_id += 1
-        n_old = self.x.size
-        n_new = n_old + d * len(values)
-        grown = np.zeros((n_new, n_new))
-        grown[:n_old, :n_old] = self.covariance
-        for index, cov in enumerate(covs):
-            start = n_old + index * d
-            grown[start : start + d, start : start + d] = cov
-        self.covariance = grown
+        # robocentric: the measurement *is* the landmark, uncorrelated with the state
+        uncorrelated = kalman.SparseJacobian(np.zeros(0, dtype=int), np.zeros((d * len(values), 0)))
+        self.covariance = kalman.augment(
+            self.covariance, uncorrelated, kalman.block_diagonal(np.stack(covs))
+        )
         self.x = np.concatenate([self.x, *values])
         self.owner = np.concatenate([self.owner, np.full(len(values), landmark_id)])
         self.is_position = np.concatenate([self.is_position, np.array(kinds)])
@@ -142,7 +150,7 @@ class FilterState:
         keep_features = np.flatnonzero(~drop)
         keep = np.concatenate([np.arange(self.vehicle_dim), self.state_indices(keep_features)])
         self.x = self.x[keep]
-        self.covariance = self.covariance[np.ix_(keep, keep)]
+        self.covariance = kalman.marginalize(self.covariance, keep)
         self.owner = self.owner[keep_features]
         self.is_position = self.is_position[keep_features]
         self.measured = self.measured[keep_features]
