@@ -18,8 +18,8 @@ The covariance update is the symmetric downdate of the optimal gain,
 ``P+ = P - K S K^T = P - W^T W`` with ``W = L^-1 H P`` and ``S = L L^T`` (Cholesky), the
 form OpenVINS uses (``StateHelper::EKFUpdate``). It equals the Joseph form
 ``(I - K H) P (I - K H)^T + K R K^T`` for the optimal gain (tested against it), is
-symmetric by construction (numpy evaluates ``W^T W`` with a symmetric rank-m update), and
-is checked for positive definiteness on its diagonal *before* P is touched: an update
+symmetric to round-off (``W^T W`` is; the prediction re-symmetrises the blocks it
+touches), and is checked for positive definiteness on its diagonal *before* P is touched: an update
 that would make a variance non-positive (round-off on a nearly noise-free measurement) is
 refused with a reason, never applied half-way. The Joseph form's extra robustness is to
 errors in a *suboptimal* gain; here the gain is always the exact optimal one, computed
@@ -35,7 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import block_diag, solve_triangular
+from scipy.linalg import blas, solve_triangular
 
 
 @dataclass(frozen=True)
@@ -132,9 +132,12 @@ class UpdateOutcome:
 def block_diagonal(blocks: np.ndarray) -> np.ndarray:
     """Per-measurement noise blocks (k, d, d) as the stacked (k d, k d) matrix."""
     blocks = np.asarray(blocks, dtype=float)
-    if blocks.size == 0:
-        return np.zeros((0, 0))
-    return block_diag(*blocks)
+    count, d = blocks.shape[0], (blocks.shape[1] if blocks.ndim == 3 else 0)
+    stacked = np.zeros((count * d, count * d))
+    # the diagonal blocks of the (count, d, count, d) view (scipy's block_diag is ~100x
+    # slower for many tiny blocks)
+    stacked.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :] = blocks
+    return stacked
 
 
 def propagate_vehicle(
@@ -211,12 +214,32 @@ def update(
             innovation,
             f"the posterior variance of state {worst} would be {posterior_variances[worst]:.3g}",
         )
-    covariance -= w.T @ w  # symmetric rank-m downdate (numpy uses syrk for a.T @ a)
+    _downdate(covariance, w)
     return UpdateOutcome(w.T @ whitened, innovation)
+
+
+def _downdate(covariance: np.ndarray, w: np.ndarray) -> None:
+    """``P -= W^T W`` in place: BLAS gemm into P itself (no N x N temporary; measured 0.32 ms
+    against 0.61 ms for ``P -= W.T @ W`` at N = 615, m = 30). ``P.T`` is the Fortran-order
+    view gemm writes into, and ``W^T W`` is symmetric, so the result is ``P - W^T W``."""
+    if covariance.flags.c_contiguous and covariance.dtype == np.float64:
+        blas.dgemm(-1.0, w, w, beta=1.0, c=covariance.T, trans_a=1, overwrite_c=1)
+    else:
+        covariance -= w.T @ w
 
 
 def group_nis(residual: np.ndarray, innovation_covariance: np.ndarray, groups) -> np.ndarray:
     """``nu_g^T S_gg^-1 nu_g`` for each group g of rows (G,)."""
+    sizes = {len(rows) for rows in groups}
+    if len(sizes) == 1 and np.array_equal(np.concatenate(groups), np.arange(residual.size)):
+        # consecutive groups of one size (a landmark each): one batched solve
+        size = sizes.pop()
+        count = residual.size // size
+        blocks = innovation_covariance.reshape(count, size, count, size)[
+            np.arange(count), :, np.arange(count), :
+        ]
+        parts = residual.reshape(count, size)
+        return np.einsum("gi,gi->g", parts, np.linalg.solve(blocks, parts[..., None])[..., 0])
     values = np.empty(len(groups))
     for index, rows in enumerate(groups):
         block = innovation_covariance[np.ix_(rows, rows)]

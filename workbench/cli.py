@@ -34,6 +34,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "workbench.commands.bench",
     "workbench.commands.bag",
     "workbench.commands.observability",
+    "workbench.commands.bench_speed",
 )
 
 SetOption = Annotated[

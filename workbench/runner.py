@@ -17,14 +17,16 @@ import yaml
 from pydantic import BaseModel
 
 from datasets.errors import InputError
-from datasets.estimate import Estimate, StepTiming, missing_sensors
+from datasets.estimate import Estimate, Estimator, StepTiming, missing_sensors
 from datasets.options import build_model, yaml_value
 from datasets.sequence import Sequence
 from workbench.registry import estimator_entry, load_dataset
 
 
 def resolve_config(
-    estimator_class: type, config_file: Path | None = None, overrides: dict[str, str] | None = None
+    estimator_class: type[Estimator],
+    config_file: Path | None = None,
+    overrides: dict[str, str] | None = None,
 ) -> BaseModel:
     """The estimator's config: class defaults, then the YAML file, then ``--set`` overrides."""
     values: dict[str, Any] = {}
@@ -46,7 +48,9 @@ def resolve_config(
     return build_model(estimator_class.Config, values, f"config of {estimator_class.__name__}")
 
 
-def check_compatible(estimator_name: str, estimator_class: type, sequence: Sequence) -> None:
+def check_compatible(
+    estimator_name: str, estimator_class: type[Estimator], sequence: Sequence
+) -> None:
     """``InputError`` naming the missing sensor(s) or the unsupported dimension."""
     missing = missing_sensors(estimator_class.sensor_options, sequence.sensors)
     if missing:
@@ -65,7 +69,7 @@ def check_compatible(estimator_name: str, estimator_class: type, sequence: Seque
         )
 
 
-def is_compatible(estimator_class: type, sequence: Sequence) -> bool:
+def is_compatible(estimator_class: type[Estimator], sequence: Sequence) -> bool:
     """Whether the estimator can run on the sequence (sensors and dimension)."""
     return not missing_sensors(estimator_class.sensor_options, sequence.sensors) and (
         sequence.dimension in estimator_class.dimensions
@@ -73,7 +77,7 @@ def is_compatible(estimator_class: type, sequence: Sequence) -> bool:
 
 
 def run_estimator(
-    estimator_class: type,
+    estimator_class: type[Estimator],
     config: BaseModel,
     sequence: Sequence,
     on_step: Callable[[float], None] | None = None,

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets.rotations import skew
 from filters.aghili.transition import ATTITUDE, POSITION, VEHICLE_DIM
 from filters.kalman import SparseJacobian
 
@@ -55,15 +54,18 @@ def sparse_sensitivity(
             landmark_columns,
         ]
     )
-    values = np.zeros((3 * count, columns.size))
+    values = np.zeros((count, 3, columns.size))
     attitude_t = attitude.T
-    for i in range(count):
-        rows = slice(3 * i, 3 * i + 3)
-        values[rows, 0:3] = 2.0 * skew(predicted[i])
-        values[rows, 3:6] = -attitude_t
-    for local, i in enumerate(estimated):
-        values[3 * i : 3 * i + 3, 6 + 3 * local : 9 + 3 * local] = attitude_t
-    return SparseJacobian(columns, values)
+    x, y, z = predicted[:, 0], predicted[:, 1], predicted[:, 2]
+    zero = np.zeros(count)
+    skews = np.stack(
+        [np.stack([zero, -z, y], 1), np.stack([z, zero, -x], 1), np.stack([-y, x, zero], 1)], 1
+    )
+    values[:, :, 0:3] = 2.0 * skews  # [p_i x]
+    values[:, :, 3:6] = -attitude_t
+    own = 6 + 3 * np.arange(estimated.size)[:, None] + np.arange(3)  # each landmark's columns
+    values[estimated[:, None, None], np.arange(3)[None, :, None], own[:, None, :]] = attitude_t
+    return SparseJacobian(columns, values.reshape(3 * count, columns.size))
 
 
 def sensitivity(
