@@ -39,14 +39,13 @@ landmarks) and the NIS of each updated landmark (3 dof).
 
 from __future__ import annotations
 
-from typing import ClassVar, Literal
+from typing import ClassVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
-from datasets.estimator_options import AssociationOptions, RecordingOptions
 from datasets.measurements import ImuSample, LandmarkScan, Measurement, Sensor
 from datasets.rotations import skew
 from datasets.sequence import Sequence
@@ -55,7 +54,9 @@ from datasets.stream_clock import StreamClock
 from filters import kalman
 from filters.aghili import quaternion_jpl as quat
 from filters.aghili.adaptive_noise import SlidingWindowNoise
-from filters.aghili.measurement import predict, sparse_sensitivity
+from filters.aghili.anchors import Anchors
+from filters.aghili.config import AghiliConfig
+from filters.aghili.measurement import MapPredictor, predict, projected_blocks, sparse_sensitivity
 from filters.aghili.observability import gauge_rotation_direction, variance_along
 from filters.aghili.process_noise import (
     noise_covariance,
@@ -77,61 +78,6 @@ from filters.association import AssociationPolicy, Decision, ScanAssociation
 
 GRAVITY_M_S2 = 9.81
 """Magnitude of g in eq. (15) (``g = (0, 0, +9.81)`` world z-up, subtracted)."""
-
-
-class AghiliConfig(AssociationOptions, RecordingOptions):
-    """Options of the Aghili adaptive EKF SLAM (``--set key=value``; association and snapshot
-    options: the shared vocabulary of ``datasets.estimator_options``)."""
-
-    model_config = ConfigDict(extra="forbid")
-    anchors: int = Field(
-        3, ge=1, description="r: number of known anchor landmarks fixing the map (section 2.1)"
-    )
-    anchor_source: Literal["known", "first-observation"] = Field(
-        "known",
-        description="'known': the dataset's surveyed positions (NEES against truth meaningful); "
-        "'first-observation': the paper's choice, from the first noisy observation (NEES not comparable)",
-    )
-    adaptive_noise: bool = Field(True, description="estimate R on line (section 4.4, eq. (42))")
-    adaptive_window: int = Field(
-        300, ge=10, description="w: landmark residuals in the eq. (42) sliding window"
-    )
-    adaptive_min_sigma_m: float = Field(
-        0.005, gt=0, description="floor on the adapted landmark std [m] (keeps R PD)"
-    )
-    adaptive_min_samples: int = Field(
-        30,
-        ge=3,
-        description="landmark residuals in the window before the adapted R replaces the initial one",
-    )
-    adaptive_residual: Literal["posterior", "prior"] = Field(
-        "posterior",
-        description="eq. (42) on post-fit residuals, R = mean(e e^T + H P+ H^T) (fails safe when P is off), "
-        "or on prior residuals as printed, R = W - H P- H^T",
-    )
-    landmark_sigma_m: float | None = Field(
-        None,
-        gt=0,
-        description="initial/fixed landmark std [m]; None: the covariances the scans carry",
-    )
-    process_noise: Literal["closed-form", "van-loan"] = Field(
-        "closed-form",
-        description="Q' by the verified closed form or by Van Loan's matrix exponential",
-    )
-    initial_velocity_sigma_m_s: float | None = Field(
-        None, ge=0, description="initial velocity std [m/s]; None: the dataset's initial state"
-    )
-    initial_gyro_bias_sigma_rad_s: float | None = Field(
-        None,
-        ge=0,
-        description="initial gyro bias std [rad/s]; None: the dataset's noise spec, else 0.01",
-    )
-    initial_accel_bias_sigma_m_s2: float | None = Field(
-        None,
-        ge=0,
-        description="initial accelerometer bias std [m/s^2]; None: the dataset's noise spec, else 0.1",
-    )
-    max_gap_s: float = Field(1.0, gt=0, description="an IMU gap longer than this is an error [s]")
 
 
 class AghiliFilter:
@@ -218,27 +164,10 @@ class AghiliFilter:
         self._next_new_id = 0
 
         # anchors (section 2.1)
-        self.anchor_ids: list[int] = []
-        self.anchor_positions = np.zeros((0, 3))
-        self._anchors_pending = False
+        self.anchors = Anchors(config.anchors, config.anchor_source, sequence)
+        if self.anchors.note is not None:
+            self.notes.append(self.anchors.note)
         known = sequence.known_landmarks
-        if config.anchor_source == "known":
-            if known is None or len(known) < config.anchors:
-                have = 0 if known is None else len(known)
-                raise InputError(
-                    f"{sequence.name}: anchors={config.anchors} known landmarks requested, the dataset offers {have} "
-                    "(use anchor_source=first-observation)"
-                )
-            self.anchor_ids = [int(i) for i in known.ids[: config.anchors]]
-            self.anchor_positions = np.array(known.positions[: config.anchors], dtype=float)
-        else:
-            self._anchors_pending = True
-            if known is not None and len(known) >= config.anchors:
-                self.anchor_ids = [int(i) for i in known.ids[: config.anchors]]
-            self.notes.append(
-                "anchors taken from their first noisy observation (paper section 2.1): the map frame differs "
-                "from the world frame by the anchors' observation error, so NEES against truth is not comparable"
-            )
         if known is not None and len(known):
             self._next_new_id = int(np.max(known.ids)) + 1
 
@@ -330,49 +259,25 @@ class AghiliFilter:
 
     def _map_targets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All map landmarks (anchors first): ids (m,), world positions (m, 3), slots (m,)."""
-        ids = np.array(self.anchor_ids[: len(self.anchor_positions)] + self.landmark_ids, dtype=int)
-        positions = np.vstack([self.anchor_positions, self.rho])
-        slots = np.r_[
-            np.full(len(self.anchor_positions), -1), np.arange(len(self.landmark_ids))
-        ].astype(int)
+        anchors = self.anchors
+        ids = np.array(anchors.ids[: anchors.placed] + self.landmark_ids, dtype=int)
+        positions = np.vstack([anchors.positions, self.rho])
+        slots = np.r_[np.full(anchors.placed, -1), np.arange(len(self.landmark_ids))].astype(int)
         return ids, positions, slots
 
     def _associate(self, scan: LandmarkScan, R: np.ndarray) -> ScanAssociation:
         """One decision per sighting against the anchors and the map (the shared policy)."""
         points = np.asarray(scan.points, float)
         map_ids, positions, slots = self._map_targets()
-        predictor = _MapPredictor(self, positions, slots)
+        predictor = MapPredictor(quat.rotation_matrix(self.q), self.r, self.P, positions, slots)
         mode = self.policy.mode(scan.ids, scan.t)
         if mode != "ids":
             return self.policy.by_geometry(points, R, len(map_ids), predictor, mode)
         association = self.policy.by_ids(scan.ids, points, R, map_ids, predictor)
-        placed = set(map_ids.tolist())
         waiting = [
-            j
-            for j in association.rows(Decision.NEW)
-            if int(scan.ids[j]) in self.anchor_ids and int(scan.ids[j]) not in placed
+            j for j in association.rows(Decision.NEW) if self.anchors.waiting(int(scan.ids[j]))
         ]
         return association.overrule(waiting, Decision.REJECTED, "anchor not placed yet")
-
-    def _place_anchors(self, scan: LandmarkScan) -> None:
-        """Section 2.1 alternative: anchors from their first (noisy) observation."""
-        points = np.asarray(scan.points, float)
-        attitude = quat.rotation_matrix(self.q)
-        if self.anchor_ids and scan.ids is not None:
-            index = {int(i): j for j, i in enumerate(np.asarray(scan.ids, int))}
-            if not all(i in index for i in self.anchor_ids):
-                return  # wait for a scan that sees all of them
-            rows = [index[i] for i in self.anchor_ids]
-        else:
-            if len(points) < self.config.anchors:
-                return
-            rows = list(range(self.config.anchors))
-            if scan.ids is not None:
-                self.anchor_ids = [int(scan.ids[j]) for j in rows]
-            else:
-                self.anchor_ids = [self._new_id() for _ in rows]
-        self.anchor_positions = points[rows] @ attitude.T + self.r  # rho_j = A p_j(0) + r
-        self._anchors_pending = False
 
     def _new_id(self) -> int:
         landmark_id = self._next_new_id
@@ -409,11 +314,11 @@ class AghiliFilter:
             self.recorder.landmark_count(scan.t, len(self.landmark_ids))
             self._record()
             return
-        if self._anchors_pending:
-            self._place_anchors(scan)
+        if self.anchors.pending:
+            self.anchors.place(scan, quat.rotation_matrix(self.q), self.r, self._new_id)
         R = self._measurement_noise(scan, k)
         association = self._associate(scan, R)
-        if self._anchors_pending:
+        if self.anchors.pending:
             # the map is not anchored yet: nothing to attach a new landmark to
             association = association.overrule(
                 association.rows(Decision.NEW), Decision.REJECTED, "map not anchored yet"
@@ -441,7 +346,7 @@ class AghiliFilter:
         self._record()
         if self.recorder.snapshot_due(scan.t):
             self.recorder.landmarks(self._landmark_map(scan.t))
-            if len(self.anchor_positions):
+            if self.anchors.placed:
                 self.recorder.extra(
                     "gauge_yaw_variance_rad2", np.array([scan.t, self.gauge_yaw_variance()])
                 )
@@ -515,7 +420,7 @@ class AghiliFilter:
         """Variance [rad^2] along the rotation about gravity through the first anchor: the
         direction one anchor leaves unobservable (section 3), ``(u^T P^-1 u)^-1``."""
         direction = gauge_rotation_direction(
-            quat.rotation_matrix(self.q), self.r, self.v, self.rho, self.anchor_positions[0]
+            quat.rotation_matrix(self.q), self.r, self.v, self.rho, self.anchors.positions[0]
         )
         return variance_along(self.P, direction)
 
@@ -575,7 +480,7 @@ class AghiliFilter:
         self.recorder.final_snapshot(final_map)
         notes = list(self.notes)
         notes.append(
-            f"anchors: {len(self.anchor_positions)} ({self.config.anchor_source}), not part of the landmark map; "
+            f"anchors: {self.anchors.placed} ({self.config.anchor_source}), not part of the landmark map; "
             "scan NIS: stacked innovation of anchors and landmarks, dof = 3 x updated landmarks"
         )
         if self.counts["empty_scans"]:
@@ -585,37 +490,3 @@ class AghiliFilter:
                 f"{self.counts['quaternion_resets']} attitude corrections with |dq_v| >= 1 (rescaled)"
             )
         return self.recorder.build(landmarks=final_map, notes=tuple(notes))
-
-
-def projected_blocks(jacobian: kalman.SparseJacobian, covariance: np.ndarray) -> np.ndarray:
-    """Diagonal 3 x 3 blocks of ``H P H^T`` (m, 3, 3) (the eq. (42) window's ``H P H^T``
-    per landmark), from the non-zero columns of H only."""
-    columns, values = jacobian.columns, jacobian.values
-    full = values @ covariance[np.ix_(columns, columns)] @ values.T
-    count = full.shape[0] // 3
-    return full.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
-
-
-class _MapPredictor:
-    """The association ``Predictor`` of the Aghili map: anchors and estimated landmarks seen
-    from the nominal pose (eqs. (7b), (10)), with ``H P H^T`` from the error covariance."""
-
-    def __init__(self, aghili: AghiliFilter, positions: np.ndarray, slots: np.ndarray) -> None:
-        self.attitude = quat.rotation_matrix(aghili.q)
-        self.position = aghili.r
-        self.covariance = aghili.P
-        self.positions = positions
-        self.slots = slots
-
-    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        predicted = predict(self.attitude, self.position, self.positions[indices])
-        jacobian = sparse_sensitivity(self.attitude, predicted, self.slots[indices])
-        columns, values = jacobian.columns, jacobian.values
-        joint = values @ self.covariance[np.ix_(columns, columns)] @ values.T
-        return predicted, 0.5 * (joint + joint.T)
-
-    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        predicted, joint = self.joint(indices)
-        count = len(predicted)
-        blocks = joint.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
-        return predicted, blocks

@@ -73,3 +73,51 @@ def sensitivity(
 ) -> np.ndarray:
     """Aghili eq. (10) as the dense (3k, state_dim) matrix (``sparse_sensitivity``)."""
     return sparse_sensitivity(attitude, predicted, state_slots).dense(state_dim)
+
+
+def projected_blocks(jacobian: SparseJacobian, covariance: np.ndarray) -> np.ndarray:
+    """Diagonal 3 x 3 blocks of ``H P H^T`` (m, 3, 3) (the eq. (42) window's ``H P H^T``
+    per landmark), from the non-zero columns of H only."""
+    columns, values = jacobian.columns, jacobian.values
+    full = values @ covariance[np.ix_(columns, columns)] @ values.T
+    count = full.shape[0] // 3
+    return full.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
+
+
+class MapPredictor:
+    """The association ``Predictor`` (``filters.association``) of the Aghili map: anchors and
+    estimated landmarks seen from the nominal pose (eqs. (7b), (10)), with ``H P H^T`` from
+    the error covariance.
+
+    Args:
+        attitude: ``Abar`` (3, 3). position: ``r_hat`` (3,). covariance: P (15 + 3n, 15 + 3n).
+        positions: world positions of the candidates (m, 3). slots: their state slots (m,),
+            -1 for anchors.
+    """
+
+    def __init__(
+        self,
+        attitude: np.ndarray,
+        position: np.ndarray,
+        covariance: np.ndarray,
+        positions: np.ndarray,
+        slots: np.ndarray,
+    ) -> None:
+        self.attitude = attitude
+        self.position = position
+        self.covariance = covariance
+        self.positions = positions
+        self.slots = slots
+
+    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        predicted = predict(self.attitude, self.position, self.positions[indices])
+        jacobian = sparse_sensitivity(self.attitude, predicted, self.slots[indices])
+        columns, values = jacobian.columns, jacobian.values
+        joint = values @ self.covariance[np.ix_(columns, columns)] @ values.T
+        return predicted, 0.5 * (joint + joint.T)
+
+    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        predicted, joint = self.joint(indices)
+        count = len(predicted)
+        blocks = joint.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
+        return predicted, blocks

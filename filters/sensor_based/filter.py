@@ -49,14 +49,13 @@ second term is indefinite and lacks the rho^2 factor.)
 from __future__ import annotations
 
 import math
-from typing import ClassVar, Literal
+from typing import ClassVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
-from datasets.estimator_options import AssociationOptions, RecordingOptions
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, so3_exp
 from datasets.sequence import Sequence
@@ -64,6 +63,8 @@ from datasets.state import BlockName, Frame, LandmarkMap
 from datasets.stream_clock import StreamClock
 from filters import kalman
 from filters.association import AssociationPolicy, Decision, Reason, ScanAssociation
+from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.directions import direction_covariance, match_direction
 from filters.sensor_based.dynamics import ProcessNoise, propagate_in_place, rate_dimension
 from filters.sensor_based.earth_frame import EarthFrameTracker
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
@@ -72,126 +73,8 @@ from filters.sensor_based.loop_closing import (
     constraint_update,
     find_loop_closure,
 )
-from filters.sensor_based.state import FilterState
+from filters.sensor_based.state import FilterState, LandmarkPredictor
 from filters.sensor_based.update import selection_update
-
-DEG = math.pi / 180.0
-
-
-class SensorBasedConfig(AssociationOptions, RecordingOptions):
-    """Options of the sensor-based filter (defaults: the paper's section V where it gives one;
-    association and snapshot options: the shared vocabulary of ``datasets.estimator_options``)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    sigma_velocity_m_s: float | list[float] = Field(
-        0.1,
-        description="sigma_v: velocity random walk [m/s/sqrt(s)] (paper 0.1, every axis); or one value per body "
-        "axis [forward, lateral(, vertical)], e.g. a path-following vehicle whose lateral body velocity is zero",
-    )
-    sigma_gyro_bias_rad_s: float = Field(
-        5.7e-5 * DEG,
-        ge=0,
-        description="sigma_br: gyro-bias random walk [rad/s/sqrt(s)] (paper 5.7e-5 deg/s)",
-    )
-    sigma_landmark_m: float = Field(
-        0.05, ge=0, description="sigma_p: landmark disturbance [m/sqrt(s)] (paper 0.05)"
-    )
-    sigma_direction: float = Field(
-        0.01, ge=0, description="disturbance of direction features [1/sqrt(s)]"
-    )
-    gyro_noise_density: float | None = Field(
-        None,
-        ge=0,
-        description="gyro white noise [rad/s/sqrt(Hz)] injected into the landmarks through G; None: the dataset's stated value (0 if none)",
-    )
-    initial_velocity_sigma_m_s: float | None = Field(
-        None,
-        gt=0,
-        description="prior std of the body velocity; None: the dataset's (2 m/s when the velocity is unknown)",
-    )
-    initial_velocity_error_m_s: list[float] | None = Field(
-        None,
-        description="added to the dataset's initial body velocity (to show convergence from a wrong guess)",
-    )
-    initial_gyro_bias_rad_s: list[float] | None = Field(
-        None, description="initial bias guess (default zero)"
-    )
-    initial_gyro_bias_sigma_rad_s: float | None = Field(
-        None,
-        gt=0,
-        description="prior bias std; None: the dataset's stated value (0.05 rad/s if none)",
-    )
-    association_window_s: float = Field(
-        20.0,
-        gt=0,
-        description="associate only landmarks seen within this many seconds (the paper's I_cur)",
-    )
-    use_directions: bool = Field(
-        False, description="use the scan's line directions as direction landmarks"
-    )
-    direction_sigma_rad: float = Field(
-        2.0 * DEG, gt=0, description="std of a measured line direction [rad]"
-    )
-    rate_interpolation: Literal["average", "hold"] = Field(
-        "average",
-        description="rate over a gyro interval: mean of its two samples, or the earlier sample held",
-    )
-    discretization: Literal["exact", "euler"] = Field(
-        "exact",
-        description="'exact': the model solved over each step with held inputs (F = expm(A Ts)); 'euler': "
-        "eq. (10) as printed (dilates landmarks by (omega Ts)^2/2 per step: a speed bias after turns)",
-    )
-    max_step_s: float = Field(
-        0.05, gt=0, description="longest prediction step; longer gaps are sub-stepped"
-    )
-    max_gap_s: float = Field(
-        60.0,
-        gt=0,
-        description="a gap between inputs longer than this is an input error (the model is then meaningless)",
-    )
-    in_view_range_m: float = Field(
-        5.0, gt=0, description="landmarks predicted within this range should be seen [m]"
-    )
-    field_of_view_deg: float = Field(
-        360.0, gt=0, le=360, description="sensor horizontal field of view [deg]"
-    )
-    max_missed_in_view: int = Field(
-        100, ge=1, description="consecutive in-view misses before deletion"
-    )
-    min_observations: int = Field(
-        3, ge=1, description="fewer sightings than this by probation_s: deleted"
-    )
-    probation_s: float = Field(
-        3.0, ge=0, description="age at which min_observations is checked [s]"
-    )
-    max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
-    loop_closing: bool = Field(
-        True,
-        description="search for loop closures between the current and old landmark sets (IV-C)",
-    )
-    loop_old_after_s: float = Field(
-        60.0, gt=0, description="landmarks unseen for longer than this form the old set I_old [s]"
-    )
-    loop_min_pairs: int = Field(
-        5,
-        ge=1,
-        description="jointly compatible pairs needed to close a loop (3-4 let one-niche-off matches through on sim:guerreiro-loop)",
-    )
-    loop_every_s: float = Field(2.0, gt=0, description="how often to search for a loop closure [s]")
-    loop_max_old_sigma_m: float = Field(
-        1.5,
-        gt=0,
-        description="old landmarks whose largest position std exceeds this are not loop candidates: a constellation match among landmarks this uncertain is not distinctive [m]",
-    )
-    loop_unambiguous_only: bool = Field(
-        True,
-        description="reject a loop closure when a second, disjoint constellation match of min_pairs pairs exists",
-    )
-    earth_frame: bool = Field(
-        True,
-        description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose",
-    )
 
 
 class SensorBasedSlam:
@@ -495,14 +378,6 @@ class SensorBasedSlam:
         self.manager.removed(removed_ids)
         self.recorder.event(t, "loop_closure", pairs=fused)
 
-    def _direction_cov(self, direction: np.ndarray) -> np.ndarray:
-        """Covariance of a measured unit direction: sigma^2 across it, a small spread along it."""
-        unit = direction / np.linalg.norm(direction)
-        sigma2 = self.config.direction_sigma_rad**2
-        return sigma2 * (np.eye(self.dimension) - np.outer(unit, unit)) + 0.01 * sigma2 * np.outer(
-            unit, unit
-        )
-
     def _add_landmark(
         self, t: float, point: np.ndarray, cov: np.ndarray, directions: np.ndarray | None
     ) -> int:
@@ -511,7 +386,10 @@ class SensorBasedSlam:
             valid = [u for u in directions if np.all(np.isfinite(u)) and np.linalg.norm(u) > 0]
             if valid:
                 direction_values = [u / np.linalg.norm(u) for u in valid]
-                direction_covs = [self._direction_cov(u) for u in direction_values]
+                direction_covs = [
+                    direction_covariance(u, self.config.direction_sigma_rad)
+                    for u in direction_values
+                ]
         landmark_id = self.state.add_landmark(point, cov, direction_values, direction_covs)
         self.manager.created(landmark_id, t)
         return landmark_id
@@ -532,7 +410,7 @@ class SensorBasedSlam:
         rows = np.flatnonzero(usable)
         if mode == "ids":
             sources = np.array([self.source_of.get(int(i), -1) for i in ids], dtype=int)
-            predictor = _LandmarkPredictor(self.state, np.arange(len(ids)))
+            predictor = LandmarkPredictor(self.state, np.arange(len(ids)))
             found = self.policy.by_ids(scan_ids[rows], points[rows], covs[rows], sources, predictor)
         else:
             current = (
@@ -540,7 +418,7 @@ class SensorBasedSlam:
                 if len(ids)
                 else np.zeros(0, dtype=int)
             )
-            predictor = _LandmarkPredictor(self.state, current)
+            predictor = LandmarkPredictor(self.state, current)
             found = self.policy.by_geometry(points[rows], covs[rows], len(current), predictor, mode)
             found = self.policy.distinct_new(points[rows], covs[rows], found)
             if found.search is not None and found.search.truncated:
@@ -581,21 +459,13 @@ class SensorBasedSlam:
             cov_blocks.append(covs[j])
             if directions is not None:
                 for feature in state.direction_features(landmark_id):
-                    predicted = state.features[feature]
-                    best, best_cos = None, 0.0
-                    for u in directions[j]:
-                        if not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
-                            continue
-                        cosine = float(u @ predicted) / (
-                            np.linalg.norm(u) * max(np.linalg.norm(predicted), 1e-12)
-                        )
-                        if abs(cosine) > abs(best_cos):
-                            best, best_cos = u, cosine
-                    if best is not None and abs(best_cos) > math.cos(math.radians(30.0)):
-                        unit = np.sign(best_cos) * best / np.linalg.norm(best)  # a line has no sign
+                    unit = match_direction(state.features[feature], directions[j])
+                    if unit is not None:
                         measured_features.append(int(feature))
                         values.append(unit)
-                        cov_blocks.append(self._direction_cov(unit))
+                        cov_blocks.append(
+                            direction_covariance(unit, self.config.direction_sigma_rad)
+                        )
             groups.append(np.arange(start, len(values) * d))
         if not measured_features:
             return assignment
@@ -696,20 +566,3 @@ class SensorBasedSlam:
             notes.append(f"skipped inputs: {self.skipped}")
         t = self.t if self.t is not None else 0.0
         return self.recorder.build(landmarks=self.landmark_map(t), notes=tuple(notes))
-
-
-class _LandmarkPredictor:
-    """The association ``Predictor`` of the robocentric map: a landmark's predicted
-    measurement is its own state (``y_i = x_i``, eq. (2)) and ``H P H^T`` its covariance."""
-
-    def __init__(self, state: FilterState, landmarks: np.ndarray) -> None:
-        self.state = state
-        self.landmarks = np.asarray(landmarks, dtype=int)  # candidate index -> landmark index
-
-    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        chosen = self.landmarks[np.asarray(indices, dtype=int)]
-        return self.state.landmark_positions()[1][chosen], self.state.position_blocks(chosen)
-
-    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        chosen = self.landmarks[np.asarray(indices, dtype=int)]
-        return self.state.landmark_positions()[1][chosen], self.state.position_covariance(chosen)

@@ -155,3 +155,20 @@ class FilterState:
         self.is_position = self.is_position[keep_features]
         self.measured = self.measured[keep_features]
         self.visible = self.visible[keep_features]
+
+
+class LandmarkPredictor:
+    """The association ``Predictor`` of the robocentric map: a landmark's predicted
+    measurement is its own state (``y_i = x_i``, eq. (2)) and ``H P H^T`` its covariance."""
+
+    def __init__(self, state: FilterState, landmarks: np.ndarray) -> None:
+        self.state = state
+        self.landmarks = np.asarray(landmarks, dtype=int)  # candidate index -> landmark index
+
+    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        chosen = self.landmarks[np.asarray(indices, dtype=int)]
+        return self.state.landmark_positions()[1][chosen], self.state.position_blocks(chosen)
+
+    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        chosen = self.landmarks[np.asarray(indices, dtype=int)]
+        return self.state.landmark_positions()[1][chosen], self.state.position_covariance(chosen)

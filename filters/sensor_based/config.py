@@ -1,0 +1,129 @@
+"""Options of the sensor-based filter (``--set key=value``; defaults: the paper's section V
+where it gives one)."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import ConfigDict, Field
+
+from datasets.estimator_options import AssociationOptions, RecordingOptions
+
+DEG = math.pi / 180.0
+
+
+class SensorBasedConfig(AssociationOptions, RecordingOptions):
+    """Options of the sensor-based filter (defaults: the paper's section V where it gives one;
+    association and snapshot options: the shared vocabulary of ``datasets.estimator_options``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    sigma_velocity_m_s: float | list[float] = Field(
+        0.1,
+        description="sigma_v: velocity random walk [m/s/sqrt(s)] (paper 0.1, every axis); or one value per body "
+        "axis [forward, lateral(, vertical)], e.g. a path-following vehicle whose lateral body velocity is zero",
+    )
+    sigma_gyro_bias_rad_s: float = Field(
+        5.7e-5 * DEG,
+        ge=0,
+        description="sigma_br: gyro-bias random walk [rad/s/sqrt(s)] (paper 5.7e-5 deg/s)",
+    )
+    sigma_landmark_m: float = Field(
+        0.05, ge=0, description="sigma_p: landmark disturbance [m/sqrt(s)] (paper 0.05)"
+    )
+    sigma_direction: float = Field(
+        0.01, ge=0, description="disturbance of direction features [1/sqrt(s)]"
+    )
+    gyro_noise_density: float | None = Field(
+        None,
+        ge=0,
+        description="gyro white noise [rad/s/sqrt(Hz)] injected into the landmarks through G; None: the dataset's stated value (0 if none)",
+    )
+    initial_velocity_sigma_m_s: float | None = Field(
+        None,
+        gt=0,
+        description="prior std of the body velocity; None: the dataset's (2 m/s when the velocity is unknown)",
+    )
+    initial_velocity_error_m_s: list[float] | None = Field(
+        None,
+        description="added to the dataset's initial body velocity (to show convergence from a wrong guess)",
+    )
+    initial_gyro_bias_rad_s: list[float] | None = Field(
+        None, description="initial bias guess (default zero)"
+    )
+    initial_gyro_bias_sigma_rad_s: float | None = Field(
+        None,
+        gt=0,
+        description="prior bias std; None: the dataset's stated value (0.05 rad/s if none)",
+    )
+    association_window_s: float = Field(
+        20.0,
+        gt=0,
+        description="associate only landmarks seen within this many seconds (the paper's I_cur)",
+    )
+    use_directions: bool = Field(
+        False, description="use the scan's line directions as direction landmarks"
+    )
+    direction_sigma_rad: float = Field(
+        2.0 * DEG, gt=0, description="std of a measured line direction [rad]"
+    )
+    rate_interpolation: Literal["average", "hold"] = Field(
+        "average",
+        description="rate over a gyro interval: mean of its two samples, or the earlier sample held",
+    )
+    discretization: Literal["exact", "euler"] = Field(
+        "exact",
+        description="'exact': the model solved over each step with held inputs (F = expm(A Ts)); 'euler': "
+        "eq. (10) as printed (dilates landmarks by (omega Ts)^2/2 per step: a speed bias after turns)",
+    )
+    max_step_s: float = Field(
+        0.05, gt=0, description="longest prediction step; longer gaps are sub-stepped"
+    )
+    max_gap_s: float = Field(
+        60.0,
+        gt=0,
+        description="a gap between inputs longer than this is an input error (the model is then meaningless)",
+    )
+    in_view_range_m: float = Field(
+        5.0, gt=0, description="landmarks predicted within this range should be seen [m]"
+    )
+    field_of_view_deg: float = Field(
+        360.0, gt=0, le=360, description="sensor horizontal field of view [deg]"
+    )
+    max_missed_in_view: int = Field(
+        100, ge=1, description="consecutive in-view misses before deletion"
+    )
+    min_observations: int = Field(
+        3, ge=1, description="fewer sightings than this by probation_s: deleted"
+    )
+    probation_s: float = Field(
+        3.0, ge=0, description="age at which min_observations is checked [s]"
+    )
+    max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
+    loop_closing: bool = Field(
+        True,
+        description="search for loop closures between the current and old landmark sets (IV-C)",
+    )
+    loop_old_after_s: float = Field(
+        60.0, gt=0, description="landmarks unseen for longer than this form the old set I_old [s]"
+    )
+    loop_min_pairs: int = Field(
+        5,
+        ge=1,
+        description="jointly compatible pairs needed to close a loop (3-4 let one-niche-off matches through on sim:guerreiro-loop)",
+    )
+    loop_every_s: float = Field(2.0, gt=0, description="how often to search for a loop closure [s]")
+    loop_max_old_sigma_m: float = Field(
+        1.5,
+        gt=0,
+        description="old landmarks whose largest position std exceeds this are not loop candidates: a constellation match among landmarks this uncertain is not distinctive [m]",
+    )
+    loop_unambiguous_only: bool = Field(
+        True,
+        description="reject a loop closure when a second, disjoint constellation match of min_pairs pairs exists",
+    )
+    earth_frame: bool = Field(
+        True,
+        description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose",
+    )
