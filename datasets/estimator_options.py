@@ -63,10 +63,10 @@ class RecordingOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     snapshot_interval_s: float = Field(
-        1.0,
+        5.0,
         ge=0,
-        description="landmark map snapshots in the history at most this often [s] (0: every "
-        "scan); the final map is always recorded",
+        description="landmark map snapshots (with their joint covariance, for the map NEES) in "
+        "the history at most this often [s] (0: every scan); the final map is always recorded",
     )
 
 

@@ -72,6 +72,9 @@ class LandmarkMap:
         covariances: per-landmark marginal covariances, shape (k, d, d), or None.
         frame: world (a world-centric map) or body (a robocentric map at time ``t``).
         t: time of the snapshot [s] (None for a static world map).
+        joint_covariance: the joint covariance of all positions, shape (k d, k d), rows in
+            landmark order, or None. A map's landmarks share the vehicle's (and the gauge's)
+            error, so only the joint covariance scores a map as a whole (the map NEES).
     """
 
     ids: np.ndarray
@@ -79,12 +82,19 @@ class LandmarkMap:
     covariances: np.ndarray | None = None
     frame: Frame = Frame.WORLD
     t: float | None = None
+    joint_covariance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.positions.ndim != 2 or self.positions.shape[0] != len(self.ids):
             raise ValueError(
                 f"LandmarkMap positions must be (k, d) with k={len(self.ids)}, got {self.positions.shape}"
             )
+        if self.joint_covariance is not None:
+            size = self.positions.size
+            if np.shape(self.joint_covariance) != (size, size):
+                raise ValueError(
+                    f"LandmarkMap joint_covariance must be {(size, size)}, got {np.shape(self.joint_covariance)}"
+                )
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -92,6 +102,24 @@ class LandmarkMap:
     @property
     def dimension(self) -> int:
         return int(self.positions.shape[1])
+
+    @staticmethod
+    def from_joint(
+        ids: np.ndarray,
+        positions: np.ndarray,
+        joint_covariance: np.ndarray,
+        frame: Frame = Frame.WORLD,
+        t: float | None = None,
+    ) -> LandmarkMap:
+        """A map whose marginal covariances are the diagonal blocks of its joint covariance
+        (copied: the snapshot must not change with the estimator's state)."""
+        positions = np.array(positions, dtype=float)
+        count, d = positions.shape
+        joint = np.array(joint_covariance, dtype=float)
+        blocks = joint.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :]
+        return LandmarkMap(
+            np.array(ids, dtype=int), positions, blocks.copy(), frame, t, joint_covariance=joint
+        )
 
     @staticmethod
     def empty(dimension: int, frame: Frame = Frame.WORLD, t: float | None = None) -> LandmarkMap:

@@ -452,18 +452,10 @@ class AghiliFilter:
         )
 
     def _landmark_map(self, t: float | None) -> LandmarkMap:
-        """Estimated landmarks (anchors excluded: they are fixed, not estimated), world frame."""
-        n = len(self.landmark_ids)
-        covariances = np.empty((n, 3, 3))
-        for i in range(n):
-            start = VEHICLE_DIM + 3 * i
-            covariances[i] = self.P[start : start + 3, start : start + 3]
-        return LandmarkMap(
-            ids=np.array(self.landmark_ids, dtype=int),
-            positions=self.rho.copy(),
-            covariances=covariances,
-            frame=Frame.WORLD,
-            t=t,
+        """Estimated landmarks (anchors excluded: they are fixed, not estimated), world frame,
+        with their joint covariance (the landmark block of P)."""
+        return LandmarkMap.from_joint(
+            self.landmark_ids, self.rho, self.P[VEHICLE_DIM:, VEHICLE_DIM:], Frame.WORLD, t
         )
 
     # ------------------------------------------------------------------ protocol

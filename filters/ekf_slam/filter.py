@@ -356,23 +356,10 @@ class EkfSlam:
 
     # ------------------------------------------------------------------ output
     def _map_snapshot(self, t: float | None) -> LandmarkMap:
-        v, d, m = self.vehicle_size, self.dimension, len(self.map_ids)
-        covariances = (
-            np.stack(
-                [
-                    self.covariance[v + i * d : v + i * d + d, v + i * d : v + i * d + d]
-                    for i in range(m)
-                ]
-            )
-            if m
-            else np.zeros((0, d, d))
-        )
-        return LandmarkMap(
-            ids=np.array(self.map_ids, dtype=int),
-            positions=self.landmarks.copy(),
-            covariances=covariances.copy(),
-            frame=Frame.WORLD,
-            t=t,
+        """The world map with its joint covariance (the landmark block of P)."""
+        v = self.vehicle_size
+        return LandmarkMap.from_joint(
+            self.map_ids, self.landmarks, self.covariance[v:, v:], Frame.WORLD, t
         )
 
     def _record(self) -> None:

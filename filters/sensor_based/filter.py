@@ -487,16 +487,10 @@ class SensorBasedSlam:
 
     # ------------------------------------------------------------------ output
     def landmark_map(self, t: float) -> LandmarkMap:
-        """The body-frame map now: ids, positions (L, d), marginal covariances (L, d, d)."""
+        """The body-frame map now: ids, positions (L, d), their joint covariance."""
         ids, positions = self.state.landmark_positions()
-        covs = self.state.position_blocks()
-        return LandmarkMap(
-            ids=ids.copy(),
-            positions=positions.copy(),
-            covariances=covs,
-            frame=Frame.BODY,
-            t=float(t),
-        )
+        joint = self.state.position_covariance(np.arange(len(ids)))
+        return LandmarkMap.from_joint(ids, positions, joint, Frame.BODY, float(t))
 
     def _record_vehicle(self, t: float) -> None:
         state = self.state

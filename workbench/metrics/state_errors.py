@@ -13,6 +13,8 @@ Block by block (error = truth - estimate, in the frame the estimate states):
 * ``velocity``: a body-frame block against ``GroundTruth.body_velocity``, a world-frame
   block against ``GroundTruth.history.blocks[velocity]``;
 * ``gyro_bias``, ``accel_bias``: against ``GroundTruth.history.blocks`` (sensor frame);
+* ``map``: the joint NEES of each snapshot's mapped landmarks against the joint covariance
+  (``map_nees_series``), V d dof;
 * ``landmarks``: every landmark of every snapshot, d dof each, after mapping the
   estimator's ids to true ids (``data_association.landmark_id_mapping``); a world-frame
   snapshot against ``GroundTruth.landmarks``, a body-frame one against
@@ -153,6 +155,31 @@ def landmark_nees_series(
     return NeesSeries(np.concatenate(times), np.concatenate(values), np.concatenate(dofs))
 
 
+def map_nees_series(
+    snapshots: tuple[LandmarkMap, ...], mapping: dict[int, int], ground_truth: GroundTruth
+) -> NeesSeries | None:
+    """The joint NEES of every snapshot that has a joint covariance: the stacked errors of
+    its mapped landmarks (V d) against their block of the joint covariance, dof = V d. The
+    landmarks of one map share the vehicle's (and the gauge's) error, so the map, not the
+    landmark, is the unit a chi-square band can be built on. None without such snapshots."""
+    times, values, dofs = [], [], []
+    for snapshot in snapshots:
+        if snapshot.joint_covariance is None or len(snapshot) == 0:
+            continue
+        errors, valid = landmark_errors(snapshot, mapping, ground_truth)
+        if not np.any(valid):
+            continue
+        d = snapshot.dimension
+        rows = (np.flatnonzero(valid)[:, None] * d + np.arange(d)).ravel()
+        joint = snapshot.joint_covariance[np.ix_(rows, rows)]
+        times.append(np.nan if snapshot.t is None else float(snapshot.t))
+        values.append(nees(errors.reshape(1, -1), joint[None])[0])
+        dofs.append(rows.size)
+    if not values:
+        return None
+    return NeesSeries(np.array(times), np.array(values), np.array(dofs, dtype=int))
+
+
 def _series(t: np.ndarray, errors: np.ndarray, covariances: np.ndarray) -> NeesSeries:
     return NeesSeries(t, nees(errors, covariances), np.full(len(t), errors.shape[1], dtype=int))
 
@@ -170,7 +197,8 @@ def nees_series(
 
     Returns:
         ``{block: NeesSeries}`` with keys among ``pose``, ``attitude``, ``position``,
-        ``velocity``, ``gyro_bias``, ``accel_bias``, ``landmarks``.
+        ``velocity``, ``gyro_bias``, ``accel_bias``, ``landmarks`` (per landmark) and ``map``
+        (the joint NEES of each snapshot).
     """
     result: dict[str, NeesSeries] = {}
     pose = history.pose
@@ -197,4 +225,7 @@ def nees_series(
         landmarks = landmark_nees_series(history.landmarks, mapping, ground_truth)
         if landmarks is not None:
             result["landmarks"] = landmarks
+        joint_map = map_nees_series(history.landmarks, mapping, ground_truth)
+        if joint_map is not None:
+            result["map"] = joint_map
     return result
