@@ -55,10 +55,11 @@ class Diagnostics:
             measurements for a smoother): the stacked innovation ``nu^T S^-1 nu`` of all
             its rows, dof = rows, shapes (U,). This is the NIS every estimator reports
             alike (sum NIS / sum dof).
-        assoc_t, assoc_measurement_index, assoc_landmark_id, assoc_decision, assoc_reason:
-            one entry per sighting in every scan, shapes (A,): the estimator's map id it
-            was associated with or created (``-1`` otherwise), the ``AssociationDecision``
-            value, and why it was not used ("" when matched or new).
+        assoc_t, assoc_measurement_index, assoc_landmark_id, assoc_decision, assoc_reason,
+        assoc_inflation: one entry per sighting in every scan, shapes (A,): the estimator's
+            map id it was associated with or created (``-1`` otherwise), the
+            ``AssociationDecision`` value, why it was not used ("" when matched or new), and
+            the factor its noise was inflated by (1 unless a known id fell outside the gate).
         landmark_count_t, landmark_count: landmarks in the state after each scan, (S,).
         events: discrete events (loop closures, skipped inputs, ...).
         extras: estimator-specific per-step arrays saved into the run's npz.
@@ -75,6 +76,7 @@ class Diagnostics:
     assoc_landmark_id: np.ndarray
     assoc_decision: np.ndarray
     assoc_reason: np.ndarray
+    assoc_inflation: np.ndarray
     landmark_count_t: np.ndarray
     landmark_count: np.ndarray
     events: tuple[Event, ...] = ()
@@ -179,6 +181,7 @@ class EstimateRecorder:
         self._assoc: list[tuple[float, int, int]] = []
         self._assoc_decisions: list[str] = []
         self._assoc_reasons: list[str] = []
+        self._assoc_inflation: list[float] = []
         self._counts: list[tuple[float, int]] = []
         self._events: list[Event] = []
         self._extras: dict[str, list[np.ndarray]] = {}
@@ -256,13 +259,15 @@ class EstimateRecorder:
         landmark_id: int,
         decision: AssociationDecision | str,
         reason: str = "",
+        inflation: float = 1.0,
     ) -> None:
         """One sighting: the map id it matched or created (-1 otherwise), the decision,
-        and why it was not used."""
+        why it was not used, and its noise inflation."""
         decision = AssociationDecision(decision)
         self._assoc.append((float(t), int(measurement_index), int(landmark_id)))
         self._assoc_decisions.append(decision.value)
         self._assoc_reasons.append(str(reason))
+        self._assoc_inflation.append(float(inflation))
 
     def landmark_count(self, t: float, count: int) -> None:
         self._counts.append((float(t), int(count)))
@@ -310,6 +315,7 @@ class EstimateRecorder:
             assoc_landmark_id=assoc[:, 2].astype(int),
             assoc_decision=np.array(self._assoc_decisions, dtype=str),
             assoc_reason=np.array(self._assoc_reasons, dtype=str),
+            assoc_inflation=np.array(self._assoc_inflation, dtype=float),
             landmark_count_t=counts[:, 0],
             landmark_count=counts[:, 1].astype(int),
             events=tuple(self._events),

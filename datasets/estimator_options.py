@@ -47,8 +47,9 @@ class AssociationOptions(BaseModel):
         DEFAULT_ID_GATE_PROBABILITY,
         gt=0,
         lt=1,
-        description="with ids: a sighting whose NIS exceeds this chi-square quantile is rejected "
-        "and counted (None: never)",
+        description="with ids: a sighting whose NIS exceeds this chi-square quantile is used with "
+        "its noise inflated so that its NIS equals the gate, and counted (never rejected: that "
+        "can leave a filter blind); None: no gate",
     )
     max_jcbb_nodes: int = Field(
         DEFAULT_MAX_JCBB_NODES,

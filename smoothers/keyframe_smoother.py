@@ -6,30 +6,31 @@ chosen by the sequence's dimension); measurements that need a state at their own
 (landmark scans, GPS fixes) open a keyframe at that time. A keyframe is committed once the
 stream has moved past its time, so every motion sample up to it is in and measurements with
 the same time stamp (duplicates) share one keyframe. Each committed keyframe goes to an
-incremental backend (iSAM2 or the fixed-lag smoother) in one update.
+incremental backend (iSAM2 or the fixed-lag smoother).
 
 Keyframe policy (``keyframe_imu_stride``): a keyframe at every landmark scan and GPS fix
 always (a measurement needs a state at its own time; attaching it to a nearby keyframe would
 inject a timing error), plus, when set, one every k motion samples (e.g. between sparse GPS
 fixes, or to bound the preintegration length).
 
-Association: by the scan's ids when it carries them (and ``association`` is ``auto`` or
-``ids``); otherwise JCBB from ``filters.association`` against the current estimate: the
-keyframe's motion (and GPS) factors are solved first, then the predicted measurements of
-the landmarks within reach get the covariance ``H P H^T`` from the *joint* marginal of the
-new pose and those landmarks (iSAM2; the fixed-lag smoother's Python API has no joint
-marginal, so there the blocks are the individual marginals, correlations neglected).
+Scans (``smoothers.landmark_scans``): when a keyframe's scans may see landmarks already in
+the map, its motion (and GPS) factors are solved first, so the backend's estimate of the new
+pose is the prediction and the joint marginal of that pose and the landmarks its covariance.
+Against that prediction every sighting is decided by the shared association policy
+(``filters.association``: the scan's ids, or JCBB on the landmarks within reach), and the
+matched sightings' stacked NIS is recorded, as every filter records it
+(``innovation_nis=false`` skips the joint marginal query when association does not need it:
+about a millisecond on sparse maps, 0.2-0.3 s per keyframe with 200 landmarks in view).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar, Literal
+from typing import ClassVar
 
 import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import L
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel
 
 from datasets.errors import InputError
 from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
@@ -43,7 +44,11 @@ from datasets.measurements import (
 )
 from datasets.sequence import Sequence
 from datasets.state import Frame, LandmarkMap, StateHistory
-from smoothers.covariances import vector_covariance
+from datasets.stream_clock import StreamClock
+from filters.association import AssociationPolicy, ScanAssociation
+from smoothers.backends import JointMarginals
+from smoothers.config import SmootherConfig
+from smoothers.covariances import symmetric
 from smoothers.imu_graph import ImuMotion, ImuNoise
 from smoothers.initialization import InitialPriors
 from smoothers.landmark_factors import (
@@ -53,97 +58,17 @@ from smoothers.landmark_factors import (
     check_measurement_covariance,
     landmark_prior,
 )
+from smoothers.landmark_scans import (
+    KeyframePredictor,
+    LandmarkBook,
+    MapLandmark,
+    pose_and_positions,
+)
 from smoothers.odometry_factors import RelativePoseAccumulator
 from smoothers.planar_graph import PlanarMotion
 
-
-class SmootherConfig(BaseModel):
-    """Options shared by every smoother mode."""
-
-    model_config = ConfigDict(extra="forbid")
-    anchors: int | None = Field(
-        None,
-        ge=0,
-        description="the first N of sequence.known_landmarks become known landmarks (tight priors), as for the filters; "
-        "None: 3 when the dataset offers known landmarks (the aghili filter's default), else 0",
-    )
-    anchor_sigma_m: float = Field(
-        1e-3, gt=0, description="std of an anchor landmark's prior [m] (tight: 'known')"
-    )
-    keyframe_imu_stride: int | None = Field(
-        None,
-        ge=1,
-        description="also open a keyframe every k motion samples (None: only at scans/GPS fixes)",
-    )
-    max_imu_gap_s: float = Field(
-        0.5, gt=0, description="a gap between motion samples longer than this is an InputError [s]"
-    )
-    gravity_m_s2: float | None = Field(
-        None,
-        gt=0,
-        description="gravity magnitude [m/s^2]; None: sequence.metadata['gravity_m_s2'] or 9.81",
-    )
-    position_sigma_m: float | None = Field(
-        None, gt=0, description="initial position prior std [m]; None: sequence.initial_state"
-    )
-    rotation_sigma_rad: float | None = Field(
-        None, gt=0, description="initial rotation prior std [rad]; None: sequence.initial_state"
-    )
-    velocity_sigma_m_s: float | None = Field(
-        None, gt=0, description="initial velocity prior std [m/s]; None: sequence.initial_state"
-    )
-    gyro_bias_sigma_rad_s: float | None = Field(
-        None, gt=0, description="initial gyro bias std [rad/s]; None: sequence.noise, else 0.01"
-    )
-    accel_bias_sigma_m_s2: float | None = Field(
-        None, gt=0, description="initial accel bias std [m/s^2]; None: sequence.noise, else 0.1"
-    )
-    landmark_factor: Literal["bearing-range", "cartesian"] = Field(
-        "bearing-range",
-        description="3-D landmark factor: native BearingRangeFactor3D with mapped noise, or an exact Python CustomFactor",
-    )
-    association: Literal["auto", "ids", "jcbb"] = Field(
-        "auto", description="auto: ids when scans carry them, else JCBB"
-    )
-    gate_probability: float = Field(
-        0.999, gt=0, lt=1, description="chi-square gate probability of JCBB"
-    )
-    use_gps: bool = Field(
-        True, description="add GPS position factors when the sequence has GPS fixes"
-    )
-    use_odometry: bool = Field(
-        True,
-        description="3-D: add relative-pose factors from 6-D odometry (lidar) when the sequence has it",
-    )
-    relinearize_threshold: float = Field(0.05, gt=0, description="iSAM2 relinearisation threshold")
-    relinearize_skip: int = Field(1, ge=1, description="iSAM2 relinearise every k updates")
-    extra_iterations: int = Field(0, ge=0, description="extra iSAM2 update() calls per keyframe")
-    planar_velocity_walk_m_s2: float = Field(
-        0.1,
-        gt=0,
-        description="2-D gyro-only model: body-velocity random-walk density [m/s^2/sqrt(Hz)]",
-    )
-    planar_gyro_density: float | None = Field(
-        None, gt=0, description="2-D gyro-only: gyro white-noise density; None: sequence.noise"
-    )
-    odometry_lateral_sigma_m_s: float = Field(
-        0.02, gt=0, description="2-D velocity odometry: lateral-slip floor [m/s]"
-    )
-    imu_interpolation: bool = Field(
-        True,
-        description="integrate the line between consecutive samples (instantaneous samples); false: zero-order hold",
-    )
-
-
-@dataclass
-class _Landmark:
-    """One map landmark: its current variable key and bookkeeping."""
-
-    map_id: int
-    key: int
-    anchor_position: np.ndarray | None = None
-    observations: int = 0
-    last_t: float = 0.0
+KEYFRAMES_PER_MARGINAL_QUERY = 32
+"""Keyframes whose states share one batched joint marginal query in the smoothed history."""
 
 
 @dataclass
@@ -159,7 +84,7 @@ class KeyframeSmoother:
     """Shared machinery of the smoother modes (see the module docstring).
 
     Subclasses choose the backend (``_make_backend``), whether to record the causal history
-    (``record_causal``) and how to finish (``_finish``).
+    (``record_causal``) and how to finish (``estimate``).
     """
 
     Config: ClassVar[type[BaseModel]] = SmootherConfig
@@ -183,19 +108,20 @@ class KeyframeSmoother:
                 f"{sequence.name}: the smoother needs an initial state (sequence.initial_state) to fix the frame; "
                 "the dataset gives none, so the system would be indeterminate"
             )
+        if self.dimension == 3 and Sensor.IMU not in sequence.sensors:
+            raise InputError(f"{sequence.name}: the 3-D smoother needs IMU samples")
         self.start = sequence.initial_state
         self.priors = self._priors(sequence)
         self.motion = self._motion_model(sequence)
-        self.recorder = EstimateRecorder(self.dimension)
+        self.recorder = EstimateRecorder(self.dimension, config.snapshot_interval_s)
+        self.policy = AssociationPolicy(config, self.dimension)
+        self.clock = StreamClock(f"{self.mode} smoother on {sequence.name}")
         self.backend = self._make_backend()
         self.full_graph = gtsam.NonlinearFactorGraph()
         self.notes: list[str] = []
-        self.landmarks: dict[int, _Landmark] = {}
-        self.next_map_id = 0
-        self.next_key_index = 0
+        self.book = LandmarkBook()
         self.keyframe_t: list[float] = []
         self.group: _Group | None = None
-        self.last_t = -np.inf
         self.estimate_values = gtsam.Values()
         self.causal_covariances = True
         self.has_gps = Sensor.GPS in sequence.sensors and config.use_gps
@@ -212,8 +138,12 @@ class KeyframeSmoother:
         self.first_sightings: dict[int, tuple[int, np.ndarray]] = {}
         self._add_anchors(sequence)
         self.start_values = gtsam.Values(self.pending_values)
-        if self.dimension == 3 and Sensor.IMU not in sequence.sensors:
-            raise InputError(f"{sequence.name}: the 3-D smoother needs IMU samples")
+        self._fallback_reported = False
+
+    @property
+    def landmarks(self) -> dict[int, MapLandmark]:
+        """Map id -> ``MapLandmark`` of every landmark ever mapped."""
+        return self.book.landmarks
 
     # ------------------------------------------------------------------ set-up
     def _priors(self, sequence: Sequence) -> InitialPriors:
@@ -276,27 +206,18 @@ class KeyframeSmoother:
                 f"{sequence.name}: known landmarks are {known.dimension}-D, the sequence is {self.dimension}-D"
             )
         for index in range(count):
-            map_id = int(known.ids[index])
             position = np.asarray(known.positions[index], dtype=float)
-            landmark = self._new_landmark(map_id, position, self.start.t)
+            landmark = self._new_variable(int(known.ids[index]), position, self.start.t)
             landmark.anchor_position = position
             self.pending_graph.add(
                 landmark_prior(landmark.key, position, self.config.anchor_sigma_m)
             )
-        self.next_map_id = max(self.next_map_id, int(np.max(known.ids[:count])) + 1)
 
-    def _new_landmark(self, map_id: int, position: np.ndarray, t: float) -> _Landmark:
-        key = L(self.next_key_index)
-        self.next_key_index += 1
-        landmark = self.landmarks.get(map_id)
-        if landmark is None:
-            landmark = _Landmark(map_id=map_id, key=key)
-            self.landmarks[map_id] = landmark
-        else:
-            landmark.key = key
-        self.pending_values.insert(key, position)
-        self.pending_times[key] = float(t)
-        landmark.last_t = float(t)
+    def _new_variable(self, map_id: int, position: np.ndarray, t: float) -> MapLandmark:
+        """A new variable for landmark ``map_id`` at ``position`` (created when unknown)."""
+        landmark = self.book.variable(map_id, t)
+        self.pending_values.insert(landmark.key, position)
+        self.pending_times[landmark.key] = float(t)
         return landmark
 
     # ------------------------------------------------------------------ subclass hooks
@@ -309,15 +230,7 @@ class KeyframeSmoother:
     # ------------------------------------------------------------------ stream
     def process(self, measurement: Measurement) -> None:
         t = float(measurement.t)
-        if not np.isfinite(t):
-            raise InputError(
-                f"non-finite time stamp after t={self.last_t:.6f} s ({type(measurement).__name__})"
-            )
-        if t < self.last_t:
-            raise InputError(
-                f"time goes backwards at t={t:.6f} s (previous {self.last_t:.6f} s, {type(measurement).__name__})"
-            )
-        self.last_t = t
+        self.clock.advance(t, type(measurement).__name__)
         if self.group is not None and t > self.group.t:
             if self.motion.accepts(measurement):
                 self.motion.look_ahead(measurement)  # type: ignore[arg-type]
@@ -386,15 +299,24 @@ class KeyframeSmoother:
                 self.odometry_3d.start()
         for fix in group.fixes:
             self._add_gps(k, fix)
-        if any(self._needs_jcbb(scan) for scan in group.scans):
-            # Solve the motion (and GPS) factors first, so that JCBB sees this keyframe's
-            # pose with its true marginal and its correlation with the map.
+        if any(self._needs_prediction(scan) for scan in group.scans):
+            # The prediction: this keyframe's motion (and GPS) factors solved first.
             self._solve_pending(t)
         for scan in group.scans:
             self._add_scan(k, scan)
         self._update(t)
         if created:
             self.motion.restart(t, self.estimate_values, k)
+
+    def _needs_prediction(self, scan: LandmarkScan) -> bool:
+        """Whether the scan is scored or associated against a prediction (NIS, the id gate,
+        JCBB) and the map has a landmark it could see."""
+        uses = (
+            self.config.innovation_nis
+            or self.config.id_gate_probability is not None
+            or self.policy.mode(scan.ids, scan.t) != "ids"
+        )
+        return uses and any(self.backend.contains(lm.key) for lm in self.landmarks.values())
 
     def _current_values(self) -> gtsam.Values:
         """Newest keyframe's estimate, with the not yet committed values layered on top."""
@@ -405,11 +327,6 @@ class KeyframeSmoother:
         values.insert(self.pending_values)
         return values
 
-    def _needs_jcbb(self, scan: LandmarkScan) -> bool:
-        return self.config.association == "jcbb" or (
-            self.config.association == "auto" and scan.ids is None
-        )
-
     def _solve_pending(self, t: float) -> None:
         """Send the pending factors to the backend without recording a causal state."""
         self._before_update(t)
@@ -418,23 +335,33 @@ class KeyframeSmoother:
         self.pending_graph = gtsam.NonlinearFactorGraph()
         self.pending_values = gtsam.Values()
         self.pending_times = {}
+        self._report_fallback()
         # Only the newest keyframe's state is needed to go on (the full estimate is O(n)).
         self.estimate_values = self.backend.values(self.motion.keys(len(self.keyframe_t) - 1))
+
+    def _report_fallback(self) -> None:
+        fallback = self.backend.fallback
+        if fallback is not None and not self._fallback_reported:
+            self._fallback_reported = True
+            self.recorder.event(
+                fallback.t, "factorization_fallback", to="QR", reason=fallback.reason
+            )
+            self.notes.append(
+                f"iSAM2's Cholesky factorisation failed at t={fallback.t:.3f} s; QR from there on "
+                f"(GTSAM: {fallback.reason})"
+            )
 
     def _update(self, t: float) -> None:
         self._solve_pending(t)
         k = len(self.keyframe_t) - 1
         if self.record_causal:
-            self.motion.record(
-                self.recorder,
-                t,
-                self.estimate_values,
-                k,
-                self.backend_marginals() if self.causal_covariances else None,
-            )
+            marginals = self.keyframe_marginals([k], t) if self.causal_covariances else None
+            self.motion.record(self.recorder, t, self.estimate_values, k, marginals)
+            self._report_fallback()
 
-    def backend_marginals(self):
-        return _BackendMarginals(self.backend)
+    def keyframe_marginals(self, keyframes: list[int], t: float = float("nan")) -> JointMarginals:
+        """One batched marginal query over the states of ``keyframes``."""
+        return self.backend.joint([key for k in keyframes for key in self.motion.keys(k)], t)
 
     # ------------------------------------------------------------------ measurements
     def _add_gps(self, k: int, fix: GpsFix) -> None:
@@ -464,9 +391,7 @@ class KeyframeSmoother:
             raise InputError(f"landmark scan at t={scan.t:.6f} s contains non-finite points")
         for index, covariance in enumerate(covariances):
             check_measurement_covariance(covariance, scan.t, index)
-        if scan.ids is not None and len(np.unique(scan.ids)) != len(scan.ids):
-            raise InputError(f"landmark scan at t={scan.t:.6f} s repeats a landmark id")
-        return points, covariances
+        return points, covariances * self.config.measurement_noise_scale
 
     def _point_factor(
         self, pose_key: int, landmark_key: int, point: np.ndarray, covariance: np.ndarray
@@ -477,135 +402,113 @@ class KeyframeSmoother:
             return cartesian_point_factor_3d(pose_key, landmark_key, point, covariance)
         return body_point_factor_3d(pose_key, landmark_key, point, covariance)
 
+    def _predictor(self, k: int, candidates: list[MapLandmark]) -> KeyframePredictor:
+        """Predictions of ``candidates`` from keyframe ``k``'s solved pose."""
+        keys = [landmark.key for landmark in candidates]
+        values = gtsam.Values(self.estimate_values)
+        values.insert(self.backend.values(keys))
+        pose, positions = pose_and_positions(values, self.motion.pose_key(k), keys, self.dimension)
+        return KeyframePredictor(
+            pose, self.motion.pose_key(k), candidates, positions, self.backend.joint, self.dimension
+        )
+
+    def _associate(
+        self, k: int, scan: LandmarkScan, points: np.ndarray, covariances: np.ndarray
+    ) -> tuple[ScanAssociation, list[MapLandmark], KeyframePredictor | None]:
+        """Decisions for the scan's sightings, the candidates their indices refer to, and the
+        prediction they were made against (None without candidates)."""
+        alive = [lm for lm in self.book.sorted() if self.backend.contains(lm.key)]
+        mode = self.policy.mode(scan.ids, scan.t)
+        if mode == "ids":
+            wanted = {int(i) for i in scan.ids}
+            candidates = [lm for lm in alive if lm.map_id in wanted]
+            predictor = (
+                self._predictor(k, candidates)
+                if candidates and self._needs_prediction(scan)
+                else None
+            )
+            ids = np.array([lm.map_id for lm in candidates], dtype=int)
+            association = self.policy.by_ids(scan.ids, points, covariances, ids, predictor)
+            return association, candidates, predictor
+        candidates, predictor = [], None
+        if alive:
+            # only landmarks within reach of this scan can be seen (bounded JCBB input)
+            everything = self._predictor(k, alive)
+            reach = float(np.max(np.linalg.norm(points, axis=1), initial=0.0)) * 1.5 + 5.0
+            near = np.flatnonzero(np.linalg.norm(everything.predicted, axis=1) < reach)
+            if near.size:
+                predictor = everything.subset(near)
+                candidates = predictor.candidates
+        association = self.policy.by_geometry(points, covariances, len(candidates), predictor, mode)
+        if association.search is not None and association.search.truncated:
+            self.recorder.event(scan.t, "jcbb_truncated", nodes=association.search.nodes)
+        return association, candidates, predictor
+
     def _add_scan(self, k: int, scan: LandmarkScan) -> None:
         points, covariances = self._check_scan(scan)
+        association, candidates, predictor = self._associate(k, scan, points, covariances)
+        matched = association.rows(AssociationDecision.MATCHED)
+        if len(matched) and predictor is not None and self.config.innovation_nis:
+            innovation = predictor.innovation(
+                association.candidates[matched], points[matched], covariances[matched]
+            )
+            if innovation is not None:
+                self.recorder.innovation(
+                    scan.t,
+                    innovation.nis,
+                    innovation.dof,
+                    innovation.group_nis,
+                    innovation.group_dof,
+                )
         values = self._current_values()
         pose = self.motion.pose_of(values, k)
-        use_ids = scan.ids is not None and self.config.association in ("auto", "ids")
-        if self.config.association == "ids" and scan.ids is None:
-            raise InputError(f"landmark scan at t={scan.t:.6f} s has no ids but association=ids")
-        if use_ids:
-            map_ids = [int(i) for i in scan.ids]  # type: ignore[union-attr]
-        else:
-            map_ids = self._associate(scan, points, covariances, pose, values)
-        for index, (map_id, point, covariance) in enumerate(zip(map_ids, points, covariances)):
-            if map_id == -2:  # ambiguous under JCBB: neither used nor a new landmark
-                self.recorder.association(scan.t, index, -1, AssociationDecision.AMBIGUOUS)
-                continue
-            landmark = self.landmarks.get(map_id) if map_id >= 0 else None
-            is_new = landmark is None or not self._key_alive(landmark.key)
-            if is_new:
-                if map_id < 0:
-                    map_id = self.next_map_id
-                    self.next_map_id += 1
+        for index, decision in enumerate(association.decisions):
+            point = points[index]
+            reason = association.reasons[index]
+            landmark: MapLandmark | None = None
+            if decision == AssociationDecision.MATCHED:
+                landmark = candidates[int(association.candidates[index])]
+            elif decision == AssociationDecision.NEW:
                 if self.dimension == 3 and np.linalg.norm(point) < 1e-3:
-                    self.recorder.association(
-                        scan.t, index, -1, AssociationDecision.REJECTED, "at the sensor origin"
-                    )
-                    continue
-                world = pose.transformFrom(point)
-                landmark = self._new_landmark(map_id, np.asarray(world, dtype=float), scan.t)
-                self.first_sightings[landmark.key] = (k, np.asarray(point, dtype=float))
-                if landmark.anchor_position is not None:  # a re-created anchor keeps its prior
-                    self.pending_graph.add(
-                        landmark_prior(
-                            landmark.key, landmark.anchor_position, self.config.anchor_sigma_m
-                        )
-                    )
-            assert landmark is not None
+                    decision, reason = AssociationDecision.REJECTED, "at the sensor origin"
+                else:
+                    landmark = self._map_new(k, scan, index, pose, point)
+            if landmark is None:
+                self.recorder.association(scan.t, index, -1, decision, reason)
+                continue
             self.pending_graph.add(
-                self._point_factor(self.motion.pose_key(k), landmark.key, point, covariance)
+                self._point_factor(
+                    self.motion.pose_key(k), landmark.key, point, association.noise[index]
+                )
             )
             landmark.observations += 1
             landmark.last_t = scan.t
             self.pending_times[landmark.key] = float(scan.t)
-            decision = AssociationDecision.NEW if is_new else AssociationDecision.MATCHED
-            self.recorder.association(scan.t, index, map_id, decision)
+            self.recorder.association(
+                scan.t, index, landmark.map_id, decision, reason, association.inflation[index]
+            )
         self.recorder.landmark_count(
             scan.t, sum(1 for lm in self.landmarks.values() if self._key_alive(lm.key))
         )
 
+    def _map_new(
+        self, k: int, scan: LandmarkScan, index: int, pose, point: np.ndarray
+    ) -> MapLandmark:
+        """A new landmark (or a new variable of a known one that left the window) from a
+        sighting; an anchor re-created keeps its prior."""
+        with_ids = scan.ids is not None and self.policy.mode(scan.ids, scan.t) == "ids"
+        map_id = int(scan.ids[index]) if with_ids else self.book.new_map_id()
+        world = np.asarray(pose.transformFrom(point), dtype=float)
+        landmark = self._new_variable(map_id, world, scan.t)
+        self.first_sightings[landmark.key] = (k, np.asarray(point, dtype=float))
+        if landmark.anchor_position is not None:
+            self.pending_graph.add(
+                landmark_prior(landmark.key, landmark.anchor_position, self.config.anchor_sigma_m)
+            )
+        return landmark
+
     def _key_alive(self, key: int) -> bool:
         return self.pending_values.exists(key) or self.backend.contains(key)
-
-    # ------------------------------------------------------------------ association
-    def _associate(
-        self,
-        scan: LandmarkScan,
-        points: np.ndarray,
-        covariances: np.ndarray,
-        pose,
-        values: gtsam.Values,
-    ) -> list[int]:
-        """JCBB against the current map: map id per point, -1 new, -2 ambiguous."""
-        from filters.association import associate_jcbb
-
-        d = self.dimension
-        # Landmarks created by another scan of this same time stamp are not solved yet.
-        alive = [lm for lm in self.landmarks.values() if self.backend.contains(lm.key)]
-        if not alive or len(points) == 0:
-            return [-1] * len(points)
-        current = self.backend.values([lm.key for lm in alive])
-        positions = np.array(
-            [current.atPoint3(lm.key) if d == 3 else current.atPoint2(lm.key) for lm in alive]
-        )
-        rotation = pose.rotation().matrix()
-        translation = pose.translation()
-        predicted = (positions - translation) @ rotation
-        reach = float(np.max(np.linalg.norm(points, axis=1))) * 1.5 + 5.0
-        near = np.linalg.norm(predicted, axis=1) < reach
-        if not np.any(near):
-            return [-1] * len(points)
-        candidates = [lm for lm, ok in zip(alive, near) if ok]
-        predicted = predicted[near]
-        k = len(self.keyframe_t) - 1
-        pose_key = self.motion.pose_key(k)
-        joint = self._joint_covariance([pose_key] + [lm.key for lm in candidates])
-        pose_dof = 6 if d == 3 else 3
-        # Predicted measurement h_i = R^T (rho_i - r): H_i = [dh/dpose, R^T] on (pose, rho_i).
-        jacobian = np.zeros((len(candidates) * d, pose_dof + len(candidates) * d))
-        for i, h in enumerate(predicted):
-            rows = slice(i * d, (i + 1) * d)
-            if d == 3:
-                skew = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
-                jacobian[rows, :pose_dof] = np.hstack([skew, -np.eye(3)])
-            else:
-                jacobian[rows, :pose_dof] = np.hstack(
-                    [-np.eye(2), (-np.array([[0.0, -1.0], [1.0, 0.0]]) @ h)[:, None]]
-                )
-            jacobian[rows, pose_dof + i * d : pose_dof + (i + 1) * d] = rotation.T
-        predicted_cov = jacobian @ joint @ jacobian.T
-        predicted_cov = 0.5 * (predicted_cov + predicted_cov.T)
-        blocks = predicted_cov
-        result = associate_jcbb(
-            points, covariances, predicted, blocks, gate_probability=self.config.gate_probability
-        )
-        out = []
-        for j, index in enumerate(result.assignments):
-            if index >= 0:
-                out.append(candidates[int(index)].map_id)
-                self.recorder.nis(scan.t, float(result.individual_nis[j]), d)
-            elif result.candidate_counts[j] > 0:
-                out.append(-2)
-            else:
-                out.append(-1)
-        return out
-
-    def _joint_covariance(self, keys: list[int]) -> np.ndarray:
-        """Joint marginal covariance of ``keys`` (iSAM2), or block-diagonal marginals
-        (fixed lag, whose Python API has no joint marginal: cross-covariances neglected)."""
-        joint = getattr(self.backend, "joint_marginal_covariance", None)
-        if joint is not None:
-            return joint(keys)
-        blocks = [self.backend.marginal_covariance(key) for key in keys]
-        size = sum(block.shape[0] for block in blocks)
-        full = np.zeros((size, size))
-        offset = 0
-        for block in blocks:
-            n = block.shape[0]
-            full[offset : offset + n, offset : offset + n] = block
-            offset += n
-        return full
 
     # ------------------------------------------------------------------ output
     def _flush(self) -> None:
@@ -614,40 +517,34 @@ class KeyframeSmoother:
         if self.pending_graph.size() or self.pending_values.size():
             self._update(self.keyframe_t[-1])
 
-    def landmark_map(self, values: gtsam.Values, marginals) -> LandmarkMap:
-        """World-frame map of the landmarks whose variables ``values`` holds."""
-        ids, positions, covariances = [], [], []
-        for landmark in sorted(self.landmarks.values(), key=lambda lm: lm.map_id):
-            if not values.exists(landmark.key):
-                continue
-            ids.append(landmark.map_id)
-            positions.append(
-                values.atPoint3(landmark.key)
-                if self.dimension == 3
-                else values.atPoint2(landmark.key)
-            )
-            covariances.append(vector_covariance(marginals.marginalCovariance(landmark.key)))
-        if not ids:
+    def landmark_map(self, values: gtsam.Values, joint) -> LandmarkMap:
+        """World-frame map of the landmarks whose variables ``values`` holds, with their
+        joint covariance from one batched query (``joint``: keys -> ``JointMarginals``)."""
+        present = [lm for lm in self.book.sorted() if values.exists(lm.key)]
+        if not present:
             return LandmarkMap.empty(self.dimension)
-        return LandmarkMap(
-            np.array(ids, dtype=int), np.array(positions), np.array(covariances), Frame.WORLD
+        keys = [lm.key for lm in present]
+        read = values.atPoint3 if self.dimension == 3 else values.atPoint2
+        positions = np.array([read(key) for key in keys], dtype=float)
+        covariance = symmetric(joint(keys).matrix(keys))
+        t = self.keyframe_t[-1]
+        return LandmarkMap.from_joint(
+            [lm.map_id for lm in present], positions, covariance, Frame.WORLD, t
         )
 
-    def smoothed_history(self, values: gtsam.Values, marginals) -> StateHistory:
+    def smoothed_history(
+        self, values: gtsam.Values, joint, keyframes: list[int] | None = None
+    ) -> StateHistory:
+        """Every keyframe's (or ``keyframes``') state at ``values`` with marginals from
+        batched queries (``joint``: keys -> ``JointMarginals``)."""
         recorder = EstimateRecorder(self.dimension)
-        for k, t in enumerate(self.keyframe_t):
-            self.motion.record(recorder, t, values, k, marginals)
+        chosen = list(range(len(self.keyframe_t))) if keyframes is None else keyframes
+        for start in range(0, len(chosen), KEYFRAMES_PER_MARGINAL_QUERY):
+            chunk = chosen[start : start + KEYFRAMES_PER_MARGINAL_QUERY]
+            marginals = joint([key for k in chunk for key in self.motion.keys(k)])
+            for k in chunk:
+                self.motion.record(recorder, self.keyframe_t[k], values, k, marginals)
         return recorder.history()
 
     def estimate(self) -> Estimate:  # pragma: no cover - subclasses
         raise NotImplementedError
-
-
-class _BackendMarginals:
-    """Adapter: ``marginalCovariance(key)`` of a backend."""
-
-    def __init__(self, backend) -> None:
-        self.backend = backend
-
-    def marginalCovariance(self, key: int) -> np.ndarray:
-        return self.backend.marginal_covariance(key)

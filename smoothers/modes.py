@@ -3,62 +3,49 @@
 - ``smoother-isam2`` (``SmootherIsam2``): iSAM2, one update per keyframe. Causal history:
   the estimate right after each keyframe's update, with iSAM2 marginal covariances of
   its pose, velocity and biases. Smoothed history: the final iSAM2 estimate of every
-  keyframe with marginals.
+  keyframe with marginals, and the final map with its joint covariance.
 - ``smoother-batch`` (``SmootherBatch``): the reference. The graph is built (and the
   association decided) by an incremental iSAM2 pass, whose final solution is the initial
   guess of Levenberg-Marquardt over the whole graph (``smoothers.initialization``: why not
-  dead reckoning). A batch solution exists only at the end, so its causal history *is* its
-  smoothed history (stated in the Estimate's notes); covariances from ``gtsam.Marginals``.
+  dead reckoning). A batch solution exists only at the end: the Estimate has *no* causal
+  history (nothing the batch knew at a time before the end), only the smoothed one, with
+  covariances from ``gtsam.Marginals``. Its NIS and association records are those of the
+  incremental pass that built the graph.
 - ``smoother-fixed-lag`` (``SmootherFixedLag``): ``gtsam.IncrementalFixedLagSmoother`` with a
   lag in seconds. Causal history as for iSAM2. Smoothed history: each keyframe's estimate
   and marginals at the moment it leaves the window (the most it is ever smoothed), the
-  rest at the end. A landmark re-observed after it was marginalised starts a new variable
-  (its old information lives on in the marginal factor of the window; anchors get their
-  prior again).
+  rest at the end; the map of the window at the end with its joint covariance. A landmark
+  re-observed after it was marginalised starts a new variable (its old information lives
+  on in the marginal factor of the window; anchors get their prior again).
+
+Marginals are always queried in batches (``backends.JointMarginals``): a keyframe's states
+together, the keys leaving the window together, the map together.
 """
 
 from __future__ import annotations
 
 import time
-from typing import ClassVar, Literal
+from dataclasses import replace
+from typing import ClassVar
 
 import gtsam
 import numpy as np
-from pydantic import Field
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
 from datasets.sequence import Sequence
-from datasets.state import Frame, LandmarkMap
-from smoothers.backends import FixedLagBackend, Isam2Backend
-from smoothers.covariances import vector_covariance
+from datasets.state import Frame, LandmarkMap, StateHistory
+from smoothers.backends import FixedLagBackend, Isam2Backend, JointMarginals, gtsam_message
+from smoothers.config import BatchConfig, FixedLagConfig, Isam2Config
 from smoothers.initialization import levenberg_marquardt
-from smoothers.keyframe_smoother import KeyframeSmoother, SmootherConfig
+from smoothers.keyframe_smoother import KeyframeSmoother
 
 
-class Isam2Config(SmootherConfig):
-    """Options of ``smoother-isam2``."""
-
-    causal_covariances: bool = Field(
-        True, description="marginal covariances after every keyframe (NEES of the causal history)"
+def _with_map(history: StateHistory, final_map: LandmarkMap) -> StateHistory:
+    """The history with the final map as its landmark snapshot (what the smoothed map is)."""
+    return replace(
+        history, landmarks=(*history.landmarks, final_map) if len(final_map) else history.landmarks
     )
-
-
-class BatchConfig(SmootherConfig):
-    """Options of ``smoother-batch``."""
-
-    max_iterations: int = Field(100, ge=1, description="Levenberg-Marquardt iterations")
-    initial_guess: Literal["incremental", "dead-reckoning"] = Field(
-        "incremental",
-        description="LM start: the incremental (iSAM2) solution, or dead reckoning (the trap, for comparison)",
-    )
-
-
-class FixedLagConfig(SmootherConfig):
-    """Options of ``smoother-fixed-lag``."""
-
-    lag_s: float = Field(5.0, gt=0, description="window length [s]")
-    causal_covariances: bool = Field(True, description="marginal covariances after every keyframe")
 
 
 class SmootherIsam2(KeyframeSmoother):
@@ -77,19 +64,17 @@ class SmootherIsam2(KeyframeSmoother):
             self.config.relinearize_skip,
             self.config.extra_iterations,
             self.dimension,
+            self.config.factorization,
         )
 
     def estimate(self) -> Estimate:
         self._flush()
         values = self.backend.estimate()
-        marginals = self.backend_marginals()
-        smoothed = self.smoothed_history(values, marginals)
+        final_map = self.landmark_map(values, self.backend.joint)
+        smoothed = _with_map(self.smoothed_history(values, self.backend.joint), final_map)
+        self._report_fallback()
         self.recorder.extra("gtsam_update_seconds_total", self.backend.gtsam_seconds)
-        return self.recorder.build(
-            landmarks=self.landmark_map(values, marginals),
-            smoothed=smoothed,
-            notes=tuple(self.notes),
-        )
+        return self.recorder.build(landmarks=final_map, smoothed=smoothed, notes=tuple(self.notes))
 
 
 class SmootherBatch(KeyframeSmoother):
@@ -105,7 +90,21 @@ class SmootherBatch(KeyframeSmoother):
             self.config.relinearize_skip,
             self.config.extra_iterations,
             self.dimension,
+            self.config.factorization,
         )
+
+    def _marginals(self, result: gtsam.Values) -> gtsam.Marginals:
+        """``gtsam.Marginals`` of the whole graph, Cholesky first, QR when it fails."""
+        try:
+            return gtsam.Marginals(self.full_graph, result)
+        except RuntimeError as error:
+            self.recorder.event(
+                self.keyframe_t[-1], "factorization_fallback", to="QR", reason=gtsam_message(error)
+            )
+            self.notes.append(
+                f"batch marginals: Cholesky failed, QR used (GTSAM: {gtsam_message(error)})"
+            )
+            return gtsam.Marginals(self.full_graph, result, gtsam.Marginals.Factorization.QR)
 
     def estimate(self) -> Estimate:
         self._flush()
@@ -120,27 +119,30 @@ class SmootherBatch(KeyframeSmoother):
             result, iterations, start_error, final_error = levenberg_marquardt(
                 self.full_graph, guess, self.config.max_iterations
             )
-            marginals = gtsam.Marginals(self.full_graph, result)
+            marginals = self._marginals(result)
         except RuntimeError as error:
             raise InputError(
-                f"batch optimisation of {self.sequence_name} failed inside GTSAM: {str(error).splitlines()[0]}"
+                f"batch optimisation of {self.sequence_name} failed inside GTSAM: {gtsam_message(error)}"
             ) from None
+
+        def joint(keys: list[int]) -> JointMarginals:
+            return JointMarginals(marginals.jointMarginalCovariance(list(keys)), keys)
+
         self.recorder.extra("batch_seconds", time.perf_counter() - start)
         self.recorder.extra("batch_iterations", iterations)
         self.recorder.extra("batch_error_start", start_error)
         self.recorder.extra("batch_error_final", final_error)
         self.recorder.extra("incremental_error", self.full_graph.error(incremental))
-        smoothed = self.smoothed_history(result, marginals)
+        final_map = self.landmark_map(result, joint)
+        smoothed = _with_map(self.smoothed_history(result, joint), final_map)
+        self._report_fallback()
         notes = tuple(self.notes) + (
             f"batch LM from the {self.config.initial_guess} solution: graph error {start_error:.6g} -> {final_error:.6g} in {iterations} iterations",
-            "batch smoother: causal history = smoothed history (a batch solution exists only at the end)",
+            "batch smoother: no causal history (a batch solution exists only at the end); "
+            "every state and the map are smoothed",
         )
         self.final_values = result
-        return _replace_causal(
-            self.recorder.build(
-                landmarks=self.landmark_map(result, marginals), smoothed=smoothed, notes=notes
-            )
-        )
+        return self.recorder.build(landmarks=final_map, smoothed=smoothed, notes=notes)
 
     def _dead_reckoning_start(self) -> gtsam.Values:
         """Open-loop start: motion increments chained from the prior, landmarks placed from
@@ -157,13 +159,6 @@ class SmootherBatch(KeyframeSmoother):
         return values
 
 
-def _replace_causal(estimate: Estimate) -> Estimate:
-    from dataclasses import replace
-
-    assert estimate.smoothed is not None
-    return replace(estimate, causal=estimate.smoothed)
-
-
 class SmootherFixedLag(KeyframeSmoother):
     """GTSAM's incremental fixed-lag smoother over a window of ``lag_s`` seconds."""
 
@@ -171,12 +166,10 @@ class SmootherFixedLag(KeyframeSmoother):
     mode: ClassVar[str] = "fixed-lag"
 
     def __init__(self, config: FixedLagConfig, sequence: Sequence) -> None:
-        self.leaving_records: dict[int, tuple[float, object]] = {}
         self.departed_landmarks: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self.keyframe_exports: dict[int, tuple[np.ndarray, ...]] = {}
+        self.keyframe_exports: dict[int, EstimateRecorder] = {}
         super().__init__(config, sequence)
         self.causal_covariances = config.causal_covariances
-        self.smoothed_recorder_rows: dict[int, EstimateRecorder] = {}
 
     def _make_backend(self) -> FixedLagBackend:
         return FixedLagBackend(
@@ -184,32 +177,41 @@ class SmootherFixedLag(KeyframeSmoother):
             self.config.relinearize_threshold,
             self.config.relinearize_skip,
             self.dimension,
+            self.config.factorization,
         )
 
     def _before_update(self, t_new: float) -> None:
+        """Export what leaves the window with this update: the keyframes' states and the
+        landmarks' positions with their marginals, from one batched query."""
         leaving = set(self.backend.leaving(t_new))
         if not leaving:
             return
-        values = self.backend.values(sorted(leaving))
-        marginals = self.backend_marginals()
-        for k, t in enumerate(self.keyframe_t):
-            if k in self.keyframe_exports or self.motion.pose_key(k) not in leaving:
-                continue
-            if t_new - t > 0 and not values.exists(self.motion.pose_key(k)):
+        keyframes = [
+            k
+            for k in range(len(self.keyframe_t))
+            if k not in self.keyframe_exports and self.motion.pose_key(k) in leaving
+        ]
+        landmarks = [lm for lm in self.landmarks.values() if lm.key in leaving]
+        keys = [key for k in keyframes for key in self.motion.keys(k)] + [
+            lm.key for lm in landmarks
+        ]
+        keys = [key for key in keys if self.backend.contains(key)]
+        if not keys:
+            return
+        values = self.backend.values(keys)
+        marginals = self.backend.joint(keys, t_new)
+        for k in keyframes:
+            if not values.exists(self.motion.pose_key(k)):
                 continue
             recorder = EstimateRecorder(self.dimension)
-            self.motion.record(recorder, t, values, k, marginals)
-            self.keyframe_exports[k] = (recorder,)
-        for landmark in self.landmarks.values():
-            if landmark.key in leaving and values.exists(landmark.key):
-                position = (
-                    values.atPoint3(landmark.key)
-                    if self.dimension == 3
-                    else values.atPoint2(landmark.key)
-                )
+            self.motion.record(recorder, self.keyframe_t[k], values, k, marginals)
+            self.keyframe_exports[k] = recorder
+        read = values.atPoint3 if self.dimension == 3 else values.atPoint2
+        for landmark in landmarks:
+            if values.exists(landmark.key):
                 self.departed_landmarks[landmark.map_id] = (
-                    np.asarray(position),
-                    vector_covariance(marginals.marginalCovariance(landmark.key)),
+                    np.asarray(read(landmark.key), dtype=float),
+                    marginals.marginalCovariance(landmark.key),
                 )
 
     def _update(self, t: float) -> None:
@@ -223,33 +225,39 @@ class SmootherFixedLag(KeyframeSmoother):
     def estimate(self) -> Estimate:
         self._flush()
         values = self.backend.estimate()
-        marginals = self.backend_marginals()
+        in_window = [
+            k
+            for k in range(len(self.keyframe_t))
+            if k not in self.keyframe_exports and values.exists(self.motion.pose_key(k))
+        ]
+        remaining = self.smoothed_history(values, self.backend.joint, in_window)
         recorder = EstimateRecorder(self.dimension)
-        for k, t in enumerate(self.keyframe_t):
-            if k in self.keyframe_exports:
-                history = self.keyframe_exports[k][0].history()  # type: ignore[union-attr]
-                _append_history(recorder, history, self.dimension)
-            elif values.exists(self.motion.pose_key(k)):
-                self.motion.record(recorder, t, values, k, marginals)
-        smoothed = recorder.history()
-        current = self.landmark_map(values, marginals)
-        landmark_map = _merge_maps(current, self.departed_landmarks, self.dimension)
+        for k in range(len(self.keyframe_t)):
+            history = self.keyframe_exports[k].history() if k in self.keyframe_exports else None
+            if history is not None:
+                _append_history(recorder, history, 0)
+            elif k in in_window:
+                _append_history(recorder, remaining, in_window.index(k))
+        window_map = self.landmark_map(values, self.backend.joint)
+        smoothed = _with_map(recorder.history(), window_map)
+        self._report_fallback()
+        landmark_map = _merge_maps(window_map, self.departed_landmarks, self.dimension)
         return self.recorder.build(
             landmarks=landmark_map, smoothed=smoothed, notes=tuple(self.notes)
         )
 
 
-def _append_history(recorder: EstimateRecorder, history, dimension: int) -> None:
-    """Copy a one-keyframe history into ``recorder``."""
+def _append_history(recorder: EstimateRecorder, history: StateHistory, index: int) -> None:
+    """Copy step ``index`` of a history into ``recorder``."""
     pose = history.pose
-    cov = None if pose.covariances is None else pose.covariances[0]
-    recorder.pose(pose.t[0], pose.positions[0], pose.rotations[0], cov)
+    cov = None if pose.covariances is None else pose.covariances[index]
+    recorder.pose(pose.t[index], pose.positions[index], pose.rotations[index], cov)
     for name, block in history.blocks.items():
         recorder.block(
             name,
-            block.t[0],
-            block.values[0],
-            None if block.covariances is None else block.covariances[0],
+            block.t[index],
+            block.values[index],
+            None if block.covariances is None else block.covariances[index],
             block.frame,
         )
 
@@ -257,13 +265,15 @@ def _append_history(recorder: EstimateRecorder, history, dimension: int) -> None
 def _merge_maps(
     current: LandmarkMap, departed: dict[int, tuple[np.ndarray, np.ndarray]], dimension: int
 ) -> LandmarkMap:
-    """Current window landmarks, plus those last seen only before leaving the window."""
+    """Current window landmarks, plus those last seen only before leaving the window (their
+    marginals only: the joint covariance of the whole map is not kept by a fixed lag)."""
     entries = {
         int(i): (p, c)
         for i, p, c in zip(
             current.ids,
             current.positions,
             current.covariances if current.covariances is not None else [],
+            strict=False,
         )
     }
     for map_id, entry in departed.items():

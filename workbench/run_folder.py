@@ -109,6 +109,7 @@ def estimate_arrays(estimate: Estimate) -> dict[str, np.ndarray]:
         "assoc_landmark_id",
         "assoc_decision",
         "assoc_reason",
+        "assoc_inflation",
         "landmark_count_t",
         "landmark_count",
     ):

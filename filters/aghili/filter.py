@@ -334,7 +334,9 @@ class AghiliFilter:
                 self._augment(points[j], R_after[j], landmark_id)
             elif decision == Decision.MATCHED:
                 landmark_id = int(map_ids[association.candidates[j]])
-            self.recorder.association(scan.t, j, landmark_id, decision, association.reasons[j])
+            self.recorder.association(
+                scan.t, j, landmark_id, decision, association.reasons[j], association.inflation[j]
+            )
         self.recorder.landmark_count(scan.t, len(self.landmark_ids))
         if self.noise_window is not None:
             sigma = (
@@ -366,13 +368,14 @@ class AghiliFilter:
         jacobian = sparse_sensitivity(attitude, predicted, slots[chosen])
         residual = (points[rows] - predicted).ravel()  # z - h(x^-)
         noise = R[rows]
+        used = association.noise[rows]  # inflated where a known id fell outside the gate
         if self.noise_window is not None and self.noise_window.residual == "prior":
             # eq. (42) as printed: prior residuals with their H P^- H^T blocks, used at once
             self.noise_window.add(residual.reshape(-1, 3), projected_blocks(jacobian, self.P))
             if self.noise_window.ready:
-                noise = np.repeat(self.noise_window.estimate()[None], len(rows), axis=0)
+                noise = used = np.repeat(self.noise_window.estimate()[None], len(rows), axis=0)
         groups = [np.arange(3 * n, 3 * n + 3) for n in range(len(rows))]
-        outcome = kalman.update(self.P, residual, jacobian, noise, groups)
+        outcome = kalman.update(self.P, residual, jacobian, used, groups, model_noise=noise)
         if outcome.innovation is not None:
             found = outcome.innovation
             self.recorder.innovation(scan.t, found.nis, found.dof, found.group_nis, found.group_dof)

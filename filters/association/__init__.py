@@ -19,7 +19,12 @@ Modules: ``compatibility`` (the chi-square gate of one pair), ``jcbb`` (the join
 and the nearest-neighbour baseline), ``policy`` (``AssociationPolicy``, ``ScanAssociation``).
 """
 
-from filters.association.compatibility import chi2_gate, individual_compatibility
+from filters.association.compatibility import (
+    Innovation,
+    chi2_gate,
+    individual_compatibility,
+    innovation_statistics,
+)
 from filters.association.jcbb import (
     AssociationResult,
     associate_jcbb,
@@ -37,6 +42,7 @@ __all__ = [
     "AssociationPolicy",
     "AssociationResult",
     "Decision",
+    "Innovation",
     "Predictor",
     "Reason",
     "ScanAssociation",
@@ -44,4 +50,5 @@ __all__ = [
     "associate_nearest_neighbour",
     "chi2_gate",
     "individual_compatibility",
+    "innovation_statistics",
 ]

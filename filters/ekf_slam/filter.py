@@ -234,7 +234,7 @@ class EkfSlam:
                     self.recorder.event(scan.t, "jcbb_truncated", nodes=search.nodes)
         matched = association.rows(AssociationDecision.MATCHED)
         if len(matched):
-            self._update(scan.t, points[matched], noise[matched], association.candidates[matched])
+            self._update(scan.t, points[matched], noise[matched], association, matched)
         created: dict[int, int] = {}
         for j in association.rows(AssociationDecision.NEW):
             source = int(scan.ids[j]) if mode == "ids" else -1
@@ -256,7 +256,9 @@ class EkfSlam:
                 landmark_id = self.map_ids[association.candidates[j]]
             else:
                 landmark_id = -1
-            self.recorder.association(t, j, landmark_id, decision, association.reasons[j])
+            self.recorder.association(
+                t, j, landmark_id, decision, association.reasons[j], association.inflation[j]
+            )
 
     def observation_jacobian(self, indices: np.ndarray) -> tuple[np.ndarray, kalman.SparseJacobian]:
         """Predicted observations (n, d) of map landmarks ``indices`` and the stacked ``H``
@@ -274,13 +276,27 @@ class EkfSlam:
             values[row * d : row * d + d, v + row * d : v + row * d + d] = landmark_jac
         return predicted, kalman.SparseJacobian(columns, values)
 
-    def _update(self, t: float, points: np.ndarray, noise: np.ndarray, indices: np.ndarray) -> None:
-        """One stacked update of every associated sighting (the shared core)."""
+    def _update(
+        self,
+        t: float,
+        points: np.ndarray,
+        noise: np.ndarray,
+        association: ScanAssociation,
+        rows: np.ndarray,
+    ) -> None:
+        """One stacked update of the sightings ``rows`` (the shared core), with the noise the
+        association says (inflated outside the id gate), scored against ``noise``."""
         d = self.dimension
+        indices = association.candidates[rows]
         predicted, jacobian = self.observation_jacobian(indices)
         groups = [np.arange(row * d, row * d + d) for row in range(len(indices))]
         outcome = kalman.update(
-            self.covariance, (points - predicted).ravel(), jacobian, noise, groups
+            self.covariance,
+            (points - predicted).ravel(),
+            jacobian,
+            association.noise[rows],
+            groups,
+            model_noise=noise,
         )
         if outcome.innovation is not None:
             innovation = outcome.innovation

@@ -300,7 +300,9 @@ class SensorBasedSlam:
             if association.mode == "ids":
                 self.source_of[landmark_id] = int(scan.ids[j])
         for j, decision in enumerate(association.decisions):
-            self.recorder.association(t, j, int(assignment[j]), decision, association.reasons[j])
+            self.recorder.association(
+                t, j, int(assignment[j]), decision, association.reasons[j], association.inflation[j]
+            )
 
         seen_ids = {int(a) for a in assignment if a >= 0}
         state = self.state
@@ -445,7 +447,8 @@ class SensorBasedSlam:
         )
         measured_features: list[int] = []
         values: list[np.ndarray] = []
-        cov_blocks: list[np.ndarray] = []
+        cov_blocks: list[np.ndarray] = []  # the noise each block is used with
+        model_blocks: list[np.ndarray] = []  # the stated noise, for the NIS
         groups: list[np.ndarray] = []
         position_of = {
             int(owner): index
@@ -456,24 +459,30 @@ class SensorBasedSlam:
             start = len(values) * d
             measured_features.append(position_of[landmark_id])
             values.append(points[j])
-            cov_blocks.append(covs[j])
+            cov_blocks.append(association.noise[j])  # inflated outside the id gate
+            model_blocks.append(covs[j])
             if directions is not None:
                 for feature in state.direction_features(landmark_id):
                     unit = match_direction(state.features[feature], directions[j])
                     if unit is not None:
                         measured_features.append(int(feature))
                         values.append(unit)
-                        cov_blocks.append(
-                            direction_covariance(unit, self.config.direction_sigma_rad)
-                        )
+                        block = direction_covariance(unit, self.config.direction_sigma_rad)
+                        cov_blocks.append(block)
+                        model_blocks.append(block)
             groups.append(np.arange(start, len(values) * d))
         if not measured_features:
             return assignment
         features = np.array(measured_features)
         indices = state.state_indices(features)
-        theta = kalman.block_diagonal(np.stack(cov_blocks))
         state.x, outcome = selection_update(
-            state.x, state.covariance, indices, np.concatenate(values), theta, groups
+            state.x,
+            state.covariance,
+            indices,
+            np.concatenate(values),
+            kalman.block_diagonal(np.stack(cov_blocks)),
+            groups,
+            kalman.block_diagonal(np.stack(model_blocks)),
         )
         if outcome.innovation is not None:
             found = outcome.innovation

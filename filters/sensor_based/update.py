@@ -19,6 +19,7 @@ def selection_update(
     measured: np.ndarray,
     measurement_cov: np.ndarray,
     groups: list[np.ndarray],
+    model_cov: np.ndarray | None = None,
 ) -> tuple[np.ndarray, kalman.UpdateOutcome]:
     """The section IV-B update ``nu = y - H x``, ``S = H Sigma H^T + Theta`` of the measured
     features; eq. (11) ``NIS_i = nu_i^T S_i^-1 nu_i`` per associated landmark ``i`` (its
@@ -28,8 +29,10 @@ def selection_update(
         x: (n,) prior mean. covariance: (n, n) prior, replaced by the posterior in place.
         state_indices: (m,) state indices measured, in the order of ``measured``.
         measured: (m,) stacked measurement.
-        measurement_cov: (m, m) ``Theta``.
+        measurement_cov: (m, m) ``Theta`` the update uses.
         groups: positions within the stacked vector of each landmark's block (for NIS).
+        model_cov: the ``Theta`` the NIS is computed with when it differs (a sighting used
+            with inflated noise is scored against the stated noise).
 
     Returns:
         (posterior mean (n,), the core's ``UpdateOutcome``); the mean is unchanged when the
@@ -42,6 +45,7 @@ def selection_update(
         kalman.SparseJacobian.selection(state_indices),
         measurement_cov,
         groups,
+        model_noise=model_cov,
     )
     if outcome.correction is None:
         return x, outcome

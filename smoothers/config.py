@@ -1,0 +1,122 @@
+"""Options of the smoother modes (``--set key=value``)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import ConfigDict, Field
+
+from datasets.estimator_options import (
+    AssociationOptions,
+    MeasurementNoiseOptions,
+    RecordingOptions,
+)
+
+
+class SmootherConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOptions):
+    """Options shared by every smoother mode (association, snapshot and noise-scale options:
+    the shared vocabulary of ``datasets.estimator_options``)."""
+
+    model_config = ConfigDict(extra="forbid")
+    anchors: int | None = Field(
+        None,
+        ge=0,
+        description="the first N of sequence.known_landmarks become known landmarks (tight priors), as for the filters; "
+        "None: 3 when the dataset offers known landmarks (the aghili filter's default), else 0",
+    )
+    anchor_sigma_m: float = Field(
+        1e-3, gt=0, description="std of an anchor landmark's prior [m] (tight: 'known')"
+    )
+    keyframe_imu_stride: int | None = Field(
+        None,
+        ge=1,
+        description="also open a keyframe every k motion samples (None: only at scans/GPS fixes)",
+    )
+    max_imu_gap_s: float = Field(
+        0.5, gt=0, description="a gap between motion samples longer than this is an InputError [s]"
+    )
+    gravity_m_s2: float | None = Field(
+        None,
+        gt=0,
+        description="gravity magnitude [m/s^2]; None: sequence.metadata['gravity_m_s2'] or 9.81",
+    )
+    position_sigma_m: float | None = Field(
+        None, gt=0, description="initial position prior std [m]; None: sequence.initial_state"
+    )
+    rotation_sigma_rad: float | None = Field(
+        None, gt=0, description="initial rotation prior std [rad]; None: sequence.initial_state"
+    )
+    velocity_sigma_m_s: float | None = Field(
+        None, gt=0, description="initial velocity prior std [m/s]; None: sequence.initial_state"
+    )
+    gyro_bias_sigma_rad_s: float | None = Field(
+        None, gt=0, description="initial gyro bias std [rad/s]; None: sequence.noise, else 0.01"
+    )
+    accel_bias_sigma_m_s2: float | None = Field(
+        None, gt=0, description="initial accel bias std [m/s^2]; None: sequence.noise, else 0.1"
+    )
+    landmark_factor: Literal["bearing-range", "cartesian"] = Field(
+        "bearing-range",
+        description="3-D landmark factor: native BearingRangeFactor3D with mapped noise, or an exact Python CustomFactor",
+    )
+    innovation_nis: bool = Field(
+        True,
+        description="record each scan's stacked NIS against the keyframe's prediction, as every "
+        "filter does (one joint marginal query per keyframe: about 1 ms on sparse maps, "
+        "0.2-0.3 s with 200 landmarks in view)",
+    )
+    use_gps: bool = Field(
+        True, description="add GPS position factors when the sequence has GPS fixes"
+    )
+    use_odometry: bool = Field(
+        True,
+        description="3-D: add relative-pose factors from 6-D odometry (lidar) when the sequence has it",
+    )
+    factorization: Literal["CHOLESKY", "QR"] = Field(
+        "CHOLESKY",
+        description="iSAM2 factorisation: CHOLESKY (fast) falls back to QR for the rest of the run "
+        "when it fails (an event says when); QR from the start",
+    )
+    relinearize_threshold: float = Field(0.05, gt=0, description="iSAM2 relinearisation threshold")
+    relinearize_skip: int = Field(1, ge=1, description="iSAM2 relinearise every k updates")
+    extra_iterations: int = Field(0, ge=0, description="extra iSAM2 update() calls per keyframe")
+    planar_velocity_walk_m_s2: float = Field(
+        0.1,
+        gt=0,
+        description="2-D gyro-only model: body-velocity random-walk density [m/s^2/sqrt(Hz)]",
+    )
+    planar_gyro_density: float | None = Field(
+        None, gt=0, description="2-D gyro-only: gyro white-noise density; None: sequence.noise"
+    )
+    odometry_lateral_sigma_m_s: float = Field(
+        0.02, gt=0, description="2-D velocity odometry: lateral-slip floor [m/s]"
+    )
+    imu_interpolation: bool = Field(
+        True,
+        description="integrate the line between consecutive samples (instantaneous samples); false: zero-order hold",
+    )
+
+
+class Isam2Config(SmootherConfig):
+    """Options of ``smoother-isam2``."""
+
+    causal_covariances: bool = Field(
+        True, description="marginal covariances after every keyframe (NEES of the causal history)"
+    )
+
+
+class BatchConfig(SmootherConfig):
+    """Options of ``smoother-batch``."""
+
+    max_iterations: int = Field(100, ge=1, description="Levenberg-Marquardt iterations")
+    initial_guess: Literal["incremental", "dead-reckoning"] = Field(
+        "incremental",
+        description="LM start: the incremental (iSAM2) solution, or dead reckoning (the trap, for comparison)",
+    )
+
+
+class FixedLagConfig(SmootherConfig):
+    """Options of ``smoother-fixed-lag``."""
+
+    lag_s: float = Field(5.0, gt=0, description="window length [s]")
+    causal_covariances: bool = Field(True, description="marginal covariances after every keyframe")
