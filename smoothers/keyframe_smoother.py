@@ -46,7 +46,7 @@ from datasets.sequence import Sequence
 from datasets.state import Frame, LandmarkMap, StateHistory
 from datasets.stream_clock import StreamClock
 from filters.association import AssociationPolicy, ScanAssociation
-from smoothers.backends import JointMarginals
+from smoothers.backends import FixedLagBackend, Isam2Backend, JointMarginals
 from smoothers.config import SmootherConfig
 from smoothers.covariances import symmetric
 from smoothers.imu_graph import ImuMotion, ImuNoise
@@ -221,8 +221,15 @@ class KeyframeSmoother:
         return landmark
 
     # ------------------------------------------------------------------ subclass hooks
-    def _make_backend(self):  # pragma: no cover - abstract
-        raise NotImplementedError
+    def _make_backend(self) -> Isam2Backend | FixedLagBackend:
+        """iSAM2 over the whole history (the fixed-lag mode overrides it)."""
+        return Isam2Backend(
+            self.config.relinearize_threshold,
+            self.config.relinearize_skip,
+            self.config.extra_iterations,
+            self.dimension,
+            self.config.factorization,
+        )
 
     def _before_update(self, t_new: float) -> None:
         """Hook run before each backend update (fixed lag records leaving keyframes)."""

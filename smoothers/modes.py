@@ -35,7 +35,7 @@ from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
 from datasets.sequence import Sequence
 from datasets.state import Frame, LandmarkMap, StateHistory
-from smoothers.backends import FixedLagBackend, Isam2Backend, JointMarginals, gtsam_message
+from smoothers.backends import FixedLagBackend, JointMarginals, gtsam_message
 from smoothers.config import BatchConfig, FixedLagConfig, Isam2Config
 from smoothers.initialization import levenberg_marquardt
 from smoothers.keyframe_smoother import KeyframeSmoother
@@ -58,15 +58,6 @@ class SmootherIsam2(KeyframeSmoother):
         super().__init__(config, sequence)
         self.causal_covariances = config.causal_covariances
 
-    def _make_backend(self) -> Isam2Backend:
-        return Isam2Backend(
-            self.config.relinearize_threshold,
-            self.config.relinearize_skip,
-            self.config.extra_iterations,
-            self.dimension,
-            self.config.factorization,
-        )
-
     def estimate(self) -> Estimate:
         self._flush()
         values = self.backend.estimate()
@@ -83,15 +74,6 @@ class SmootherBatch(KeyframeSmoother):
     Config: ClassVar = BatchConfig
     record_causal: ClassVar[bool] = False
     mode: ClassVar[str] = "batch"
-
-    def _make_backend(self) -> Isam2Backend:
-        return Isam2Backend(
-            self.config.relinearize_threshold,
-            self.config.relinearize_skip,
-            self.config.extra_iterations,
-            self.dimension,
-            self.config.factorization,
-        )
 
     def _marginals(self, result: gtsam.Values) -> gtsam.Marginals:
         """``gtsam.Marginals`` of the whole graph, Cholesky first, QR when it fails."""

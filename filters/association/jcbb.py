@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from datasets.errors import InputError
-from datasets.estimator_options import DEFAULT_MAX_JCBB_NODES
+from datasets.estimator_options import DEFAULT_GATE_PROBABILITY, DEFAULT_MAX_JCBB_NODES
 from filters.association.compatibility import (
     check_inputs,
     chi2_gate,
@@ -200,7 +200,7 @@ def associate_jcbb(
     predicted: np.ndarray,
     predicted_cov: np.ndarray,
     cross_cov: np.ndarray | None = None,
-    gate_probability: float = 0.99,
+    gate_probability: float = DEFAULT_GATE_PROBABILITY,
     max_nodes: int = DEFAULT_MAX_JCBB_NODES,
     candidate_mask: np.ndarray | None = None,
 ) -> AssociationResult:
@@ -300,7 +300,7 @@ def associate_nearest_neighbour(
     predicted: np.ndarray,
     predicted_cov: np.ndarray,
     cross_cov: np.ndarray | None = None,
-    gate_probability: float = 0.99,
+    gate_probability: float = DEFAULT_GATE_PROBABILITY,
 ) -> AssociationResult:
     """Individually gated nearest neighbour, each landmark used at most once (greedy by D^2).
 
