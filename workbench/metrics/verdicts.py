@@ -24,9 +24,10 @@ Why these levels: a table holds dozens of cells, so a per-cell level of 5 % woul
 cell of a perfectly consistent estimator almost surely. ``benchmarks/verdict_false_alarms.py``
 simulates tables of consistent cells (time-correlated NEES, 1 to 6 dof, 10 to 50 runs) and
 measures the rule's false-alarm rate per cell and per table; the levels keep a 100-cell
-table of consistent cells below 5 %: measured (300 tables each, seed 1) 0.02 % of cells and
-2.0 % of tables at 25 runs, 0.01 % and 1.0 % at 50 runs, and with the smaller level below 20
-runs 0.035 % and 3.5 % at 10 runs, 0.005 % and 0.5 % at 15 runs.
+table of consistent cells below 5 %. Measured with 1000 tables each: 1e-4 per cell gives
+0.03 % of cells and 3.1 % of tables at 20 runs, 0.02 % and 2.1 % at 50 runs; below 20 runs
+the estimated correlation time is too often too short, and 1e-6 per cell gives 0.007 % and
+0.7 % at 10 runs, 0.003 % and 0.3 % at 15.
 """
 
 from __future__ import annotations
