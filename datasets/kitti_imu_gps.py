@@ -257,6 +257,7 @@ def load_folder(folder: Path, seed: int, config: KittiImuGpsOptions) -> Sequence
         initial_state=start,
         metadata={
             "source": str(folder),
+            "reference_source": "held-out GPS fixes",
             "seed": seed,
             "options": config.model_dump(),
             "gravity_m_s2": GRAVITY_M_S2,

@@ -402,6 +402,7 @@ def load_mrclam(
 
     metadata = {
         "source": str(folder),
+        "reference_source": "Vicon",
         "robot": robot,
         "time_source": time_source,
         "time_origin_s": float(origin),

@@ -17,8 +17,9 @@ import pytest
 
 from workbench.commands.bench import bench
 from workbench.metrics.consistency import averaged_nees
-from workbench.monte_carlo import RunNees, average_runs
-from workbench.tables import COLUMNS, Row, Stat, markdown_table, non_timing_columns
+from workbench.results.consistency import StepSeries, average_runs
+from workbench.results.summary import PairSummary, Stat
+from workbench.results.tables import markdown_table, non_timing_columns
 
 RUNS = 2
 
@@ -48,9 +49,9 @@ def test_tiny_writes_tables_and_plots(uninterrupted: Path) -> None:
     }
     for record in records:
         assert record["status"] == "ok" and record["runs"] == str(RUNS)
-        assert float(record["ate_rmse_m_mean"]) > 0
-        assert float(record["time_step_median_ms_mean"]) > 0
-        assert record["anees_pose_mean"] != "" and float(record["anees_pose_runs"]) == RUNS
+        assert float(record["ate_rmse_m"]) > 0
+        assert float(record["time_per_step_ms_median"]) > 0
+        assert record["anees_pose"] != "" and record["verdict_pose"] == "too few runs"
     assert len(_metrics_files(uninterrupted)) == 4 * RUNS
     markdown = (uninterrupted / "table.md").read_text()
     assert "| sim:circle | ekf-slam | 2 |" in markdown
@@ -61,7 +62,7 @@ def test_tiny_writes_tables_and_plots(uninterrupted: Path) -> None:
         for figure in (
             "trajectories",
             "pose_errors",
-            "anees",
+            "consistency",
             "landmark_count",
             "time_vs_landmarks",
             "nis",
@@ -161,28 +162,28 @@ def test_average_runs_equals_the_classic_averaged_nees_for_poses() -> None:
     values = rng.chisquare(dof, size=(runs, steps))
     t = np.arange(steps) * 0.1
     ours = average_runs(
-        [RunNees(t, row, np.full(steps, dof), np.ones(steps, dtype=int)) for row in values]
+        [StepSeries(t, row, np.full(steps, dof), np.ones(steps, dtype=int)) for row in values]
     )
-    classic = averaged_nees(values, dof)
-    np.testing.assert_allclose(ours.mean, classic.mean)
-    np.testing.assert_allclose(ours.lower, classic.lower)
-    np.testing.assert_allclose(ours.upper, classic.upper)
+    classic = averaged_nees(values, dof)  # per run, not per dof
+    np.testing.assert_allclose(ours.mean * dof, classic.mean)
+    np.testing.assert_allclose(ours.lower * dof, classic.lower)
+    np.testing.assert_allclose(ours.upper * dof, classic.upper)
     assert ours.inside_fraction == pytest.approx(classic.inside_fraction)
     assert ours.aligned_by == "time"
 
 
 def test_average_runs_aligns_by_time_and_weights_landmark_units() -> None:
     # run B misses the first step: only the common stamps are averaged
-    a = RunNees(
+    a = StepSeries(
         np.array([0.0, 1.0, 2.0]),
         np.array([2.0, 4.0, 6.0]),
         np.array([2, 4, 6]),
         np.array([1, 2, 3]),
     )
-    b = RunNees(np.array([1.0, 2.0]), np.array([2.0, 2.0]), np.array([2, 2]), np.array([1, 1]))
+    b = StepSeries(np.array([1.0, 2.0]), np.array([2.0, 4.0]), np.array([2, 2]), np.array([1, 1]))
     averaged = average_runs([a, b])
     np.testing.assert_allclose(averaged.t, [1.0, 2.0])
-    np.testing.assert_allclose(averaged.mean, [6.0 / 3, 8.0 / 4])  # sum of NEES / landmarks
+    np.testing.assert_allclose(averaged.mean, [6.0 / 6, 10.0 / 8])  # summed NEES / summed dof
 
 
 def test_average_runs_flags_an_overconfident_estimator() -> None:
@@ -191,32 +192,34 @@ def test_average_runs_flags_an_overconfident_estimator() -> None:
     t = np.arange(steps, dtype=float)
     # errors twice the stated sigma: NEES four times chi-square
     runs = [
-        RunNees(t, 4.0 * rng.chisquare(dof, steps), np.full(steps, dof), np.ones(steps, dtype=int))
+        StepSeries(
+            t, 4.0 * rng.chisquare(dof, steps), np.full(steps, dof), np.ones(steps, dtype=int)
+        )
         for _ in range(20)
     ]
     assert average_runs(runs).inside_fraction < 0.05
     honest = [
-        RunNees(t, rng.chisquare(dof, steps), np.full(steps, dof), np.ones(steps, dtype=int))
+        StepSeries(t, rng.chisquare(dof, steps), np.full(steps, dof), np.ones(steps, dtype=int))
         for _ in range(20)
     ]
     assert average_runs(honest).inside_fraction > 0.85
 
 
 def test_markdown_says_na_with_the_reason() -> None:
-    empty = {column.key: None for column in COLUMNS}
     rows = [
-        Row(
+        PairSummary(
             "sim:x",
+            "a",
             "a",
             "ok",
             2,
             2,
-            {**empty, "ate_rmse_m": Stat(1.5, 0.25, 2), "nis_mean": Stat(2.0, 0.5, 2)},
-            {},
+            None,
+            stats={"ate_rmse_m": Stat(1.5, 0.25, 2), "time_per_step_ms_median": Stat(2.0, 0.5, 2)},
         ),
-        Row("sim:x", "b", "n/a", 0, 0, empty, {}),
+        PairSummary("sim:x", "b", "b", "n/a", 0, 0, "needs imu"),
     ]
-    text = markdown_table(rows, ["n/a sim:x / b: needs imu"])
-    assert "| sim:x | a | 2 | 1.5 ± 0.25 | 2 ± 0.5 |" in text
-    assert "| sim:x | b | - | n/a |  |" in text
+    text = markdown_table(rows)
+    assert "| sim:x | a | 2 | 1.5 ± 0.25 | " in text
+    assert "| sim:x | b | - | n/a |" in text
     assert "- n/a sim:x / b: needs imu" in text

@@ -35,6 +35,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "workbench.commands.bag",
     "workbench.commands.observability",
     "workbench.commands.bench_speed",
+    "workbench.commands.report",
 )
 
 SetOption = Annotated[

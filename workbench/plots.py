@@ -45,12 +45,13 @@ def trajectory_on_axes(
     axes: plt.Axes,
     trajectories: dict[str, Trajectory],
     landmarks: dict[str, np.ndarray] | None = None,
+    styles: dict[str, dict] | None = None,
 ) -> None:
-    """Top view (x, y) of named trajectories and optional named landmark sets (k, >=2)."""
+    """Top view (x, y) of named trajectories (with optional ``plot`` keywords per name) and
+    optional named landmark sets (k, >=2)."""
     for label, trajectory in trajectories.items():
-        axes.plot(
-            trajectory.positions[:, 0], trajectory.positions[:, 1], label=label, linewidth=1.2
-        )
+        keywords = {"linewidth": 1.2, **(styles or {}).get(label, {})}
+        axes.plot(trajectory.positions[:, 0], trajectory.positions[:, 1], label=label, **keywords)
     for label, points in (landmarks or {}).items():
         if len(points):
             axes.scatter(
@@ -135,7 +136,8 @@ def write_run_plots(
     truth = sequence.ground_truth
     trajectories: dict[str, Trajectory] = {}
     if truth is not None and truth.pose is not None:
-        trajectories["truth"] = truth.pose
+        source = sequence.metadata.get("reference_source")
+        trajectories[f"reference ({source})" if source else "reference"] = truth.pose
     if estimate.causal.pose is not None:
         trajectories["estimate (causal)"] = estimate.causal.pose
     if estimate.smoothed is not None and estimate.smoothed.pose is not None:

@@ -1,19 +1,22 @@
-"""Figures of a whole sweep (``workbench bench``), per dataset, comparing the estimators.
+"""Figures comparing the estimators of one dataset (``workbench bench``, ``workbench report``).
 
-``OUT/plots/<dataset>/`` receives, as PNG (and PDF or SVG on request, ``--plot-format``):
-    ``trajectories``        top view of each estimator's trajectory (first seed; causal, and
-                            smoothed for smoothers) against the truth, one panel each;
-    ``pose_errors``         per-axis pose errors of the first seed with their +/-3 sigma
-                            envelopes, a row per estimator (velocity and bias errors are in
-                            each run folder's own plots with ``--run-plots``);
-    ``anees``               NEES averaged over the runs, per block, over time, with the
-                            two-sided 95% chi-square band (``monte_carlo``);
-    ``nis``                 NIS over time (first seed) with the 95% bound of its dof;
-    ``landmark_count``      landmarks in the state over time (first seed);
-    ``time_vs_landmarks``   mean time per processed measurement against the number of
-                            landmarks in the state (all runs), filters solid, smoothers dashed.
-
-Functions come in pairs as in ``workbench.plots``: ``*_on_axes`` draws, the wrapper saves.
+``OUT/plots/<dataset>/`` receives (PNG; PDF or SVG with ``--plot-format``):
+    ``trajectories``        top view of each estimator's trajectory (one seed: the first by
+                            default; causal solid, smoothed dashed) against the reference,
+                            which is named by its source (simulated truth, Vicon, ...);
+    ``pose_errors``         per-axis pose errors of that seed with +/-3 sigma envelopes, one
+                            row per estimator; a row that cannot be drawn says why;
+    ``consistency``         NEES (and NIS) per degree of freedom averaged over the runs, per
+                            table block, over time, each with its two-sided 95 % chi-square
+                            band shaded in the estimator's colour, runs and dof in the legend;
+    ``nis``                 each update's NIS per dof of that seed with its 95 % band;
+    ``landmark_count``      landmarks in the state over time (that seed);
+    ``time_vs_landmarks``   mean time per processed measurement against the landmarks in the
+                            state (every run).
+Colours and markers come from ``workbench.style`` (the same estimator looks the same in
+every axes of every figure); times are relative to the dataset's first stamp.
+Functions come in pairs as in ``workbench.plots``: ``*_on_axes`` draws, the builder returns
+the figure.
 """
 
 from __future__ import annotations
@@ -27,38 +30,34 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from datasets.trajectory_io import read_tum  # noqa: E402
-from workbench.monte_carlo import AveragedSeries, ErrorSeries  # noqa: E402
 from workbench.plot_formats import DEFAULT_PLOT_FORMATS  # noqa: E402
-from workbench.plots import (  # noqa: E402
-    NamedFigure,
-    nis_on_axes,
-    save_figure,
-    trajectory_on_axes,
-)
-from workbench.registry import estimator_entry  # noqa: E402
-from workbench.results import PairResults, RunSeries, collect  # noqa: E402
-from workbench.suites import DatasetSpec  # noqa: E402
-from workbench.sweep.plan import Plan  # noqa: E402
+from workbench.plots import NamedFigure, save_figure, trajectory_on_axes  # noqa: E402
+from workbench.results.consistency import TABLE_BLOCKS, AveragedSeries, ErrorSeries  # noqa: E402
+from workbench.results.runs import RunRecord  # noqa: E402
+from workbench.results.summary import PairSummary  # noqa: E402
+from workbench.style import REFERENCE_COLOUR, estimator_style  # noqa: E402
 
-NEES_BLOCK_TITLES = {
+BLOCK_TITLES = {
     "pose": "pose",
     "velocity": "velocity",
     "gyro_bias": "gyro bias",
     "accel_bias": "accelerometer bias",
-    "landmarks": "landmarks (per landmark)",
+    "map": "map (joint NEES of each snapshot)",
+    "nis": "NIS (each update against its prediction)",
 }
 
 
-def is_smoother(estimator_name: str) -> bool:
-    """Whether the registered estimator lives in ``smoothers/`` (by its registry target)."""
-    return estimator_entry(estimator_name).target.startswith("smoothers.")
+def chosen_run(pair: PairSummary, seed: int | None) -> RunRecord | None:
+    """The finished run with ``seed`` (None: the lowest seed), or None."""
+    runs = pair.finished_runs
+    if seed is None:
+        return runs[0] if runs else None
+    return next((run for run in runs if run.seed == seed), None)
 
 
-def _line_style(pair: PairResults) -> str:
-    return "--" if is_smoother(pair.estimator.name) else "-"
-
-
-# ---------------------------------------------------------------------------- drawing
+def _npz(folder: Path, *keys: str) -> tuple[np.ndarray, ...]:
+    with np.load(folder / "estimate.npz") as data:
+        return tuple(data[key] if key in data.files else np.zeros(0) for key in keys)
 
 
 def _log_y(axes: plt.Axes) -> None:
@@ -76,246 +75,325 @@ def _legend_outside(axes: plt.Axes) -> None:
     axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
 
 
+def _say(axes: plt.Axes, text: str) -> None:
+    """A panel that cannot be drawn says why (nothing is dropped silently)."""
+    axes.text(
+        0.5, 0.5, text, ha="center", va="center", fontsize=8, transform=axes.transAxes, wrap=True
+    )
+    axes.set_xticks([])
+    axes.set_yticks([])
+
+
+def dof_text(averaged: AveragedSeries) -> str:
+    low, high = int(averaged.dof.min()), int(averaged.dof.max())
+    return f"{low} dof" if low == high else f"{low}-{high} dof"
+
+
 def errors_on_axes(
     axes: plt.Axes,
     series: ErrorSeries,
+    t0: float,
     components: tuple[int, ...],
     names: tuple[str, ...],
     scale: float = 1.0,
 ) -> None:
-    """Several error components on one axes, each with its +/-3 sigma envelope in the same
-    colour (values multiplied by ``scale``, e.g. rad -> deg)."""
-    for index, (component, name) in enumerate(zip(components, names)):
-        color = f"C{index}"
+    """Error components with their +/-3 sigma envelopes (``scale``: e.g. rad -> deg); the
+    components of one quantity are told apart by the C0.. cycle within the axes only."""
+    for index, (component, name) in enumerate(zip(components, names, strict=True)):
+        colour = f"C{index}"
         sigma = 3.0 * scale * series.sigmas[:, component]
-        axes.fill_between(series.t, -sigma, sigma, color=color, alpha=0.15, linewidth=0)
-        axes.plot(
-            series.t, scale * series.errors[:, component], color=color, linewidth=0.8, label=name
-        )
+        t = series.t - t0
+        if np.all(np.isfinite(sigma)):
+            axes.fill_between(t, -sigma, sigma, color=colour, alpha=0.15, linewidth=0)
+        axes.plot(t, scale * series.errors[:, component], color=colour, linewidth=0.8, label=name)
     axes.grid(True, alpha=0.3)
     axes.legend(fontsize=7, loc="upper right", ncol=len(components))
 
 
-def _common_constant_band(series: list[AveragedSeries]) -> tuple[float, float] | None:
-    """The band shared by every series when each one's bounds are constant over its steps
-    and equal to the others' (same runs and dof), else None."""
-    bands = set()
-    for item in series:
-        if len(item.t) == 0 or np.ptp(item.lower) > 1e-9 or np.ptp(item.upper) > 1e-9:
-            return None
-        bands.add((round(float(item.lower[0]), 9), round(float(item.upper[0]), 9)))
-    return bands.pop() if len(bands) == 1 else None
-
-
-def anees_on_axes(axes: plt.Axes, curves: dict[str, tuple[AveragedSeries, str]]) -> None:
-    """Averaged NEES over time of several estimators with the 95% band: one grey band when
-    every estimator has the same constant one (same runs and dof), otherwise each
-    estimator's bounds as dotted lines in its colour."""
-    shared = _common_constant_band([series for series, _ in curves.values()])
-    if shared is not None:
-        axes.axhspan(shared[0], shared[1], color="0.6", alpha=0.3, linewidth=0, label="95% band")
-    for index, (label, (series, style)) in enumerate(curves.items()):
-        color = f"C{index % 10}"
-        marker = "o" if len(series.t) < 3 else None
-        axes.plot(
-            series.t,
-            series.mean,
-            style,
-            color=color,
-            linewidth=1.0,
-            marker=marker,
-            markersize=4,
-            label=f"{label} ({series.runs} runs)",
+def consistency_on_axes(
+    axes: plt.Axes, curves: list[tuple[str, str, AveragedSeries]], t0: float
+) -> None:
+    """Per-dof averages over time of several estimators, each with its own shaded 95 %
+    band: ``curves`` of (estimator label, scored kind, series)."""
+    for label, kind, series in curves:
+        style = estimator_style(label, kind)
+        t = series.t - t0 if np.all(np.isfinite(series.t)) else np.arange(len(series.t))
+        axes.fill_between(
+            t, series.lower, series.upper, color=style.color, alpha=0.12, linewidth=0, step="mid"
         )
-        if not shared:
-            axes.plot(series.t, series.lower, ":", color=color, linewidth=0.8)
-            axes.plot(series.t, series.upper, ":", color=color, linewidth=0.8)
+        suffix = " smoothed" if kind == "smoothed" else ""
+        axes.plot(
+            t,
+            series.mean,
+            linewidth=1.0,
+            label=f"{label}{suffix} ({series.runs} runs, band: {dof_text(series)})",
+            **style.keywords(len(t)),
+        )
+    axes.axhline(1.0, color="0.3", linewidth=0.6)
     _log_y(axes)
-    axes.set_xlabel("t [s]")
-    axes.set_ylabel("averaged NEES")
+    axes.set_ylabel("per dof")
     axes.grid(True, alpha=0.3)
     _legend_outside(axes)
 
 
-def landmark_count_on_axes(axes: plt.Axes, counts: dict[str, tuple[RunSeries, str]]) -> None:
-    for label, (series, style) in counts.items():
-        axes.step(series.count_t, series.count, style, where="post", label=label, linewidth=1.0)
-    axes.set_xlabel("t [s]")
-    axes.set_ylabel("landmarks in state")
-    axes.grid(True, alpha=0.3)
-    _legend_outside(axes)
+def nis_on_axes(
+    axes: plt.Axes, label: str, t: np.ndarray, nis: np.ndarray, dof: np.ndarray
+) -> None:
+    """Each update's NIS per dof with its two-sided 95 % band (per update: dofs differ)."""
+    from scipy.stats import chi2
 
-
-def time_per_landmarks(series: RunSeries) -> tuple[np.ndarray, np.ndarray]:
-    """(landmarks in the state at each processed measurement, its time [s]); a step before
-    the first count has 0 landmarks."""
-    if len(series.timing_t) == 0:
-        return np.zeros(0, dtype=int), np.zeros(0)
-    if len(series.count_t) == 0:
-        return np.zeros(len(series.timing_t), dtype=int), series.timing_seconds
-    index = np.searchsorted(series.count_t, series.timing_t, side="right") - 1
-    counts = np.where(index >= 0, series.count[np.clip(index, 0, None)], 0)
-    return counts.astype(int), series.timing_seconds
-
-
-def time_vs_landmarks_on_axes(axes: plt.Axes, runs: dict[str, tuple[list[RunSeries], str]]) -> None:
-    """Mean time per step [ms] against landmarks in the state, pooled over runs."""
-    for label, (series_list, style) in runs.items():
-        pooled = [time_per_landmarks(series) for series in series_list]
-        counts = np.concatenate([c for c, _ in pooled]) if pooled else np.zeros(0, dtype=int)
-        seconds = np.concatenate([s for _, s in pooled]) if pooled else np.zeros(0)
-        if counts.size == 0:
-            continue
-        values = np.unique(counts)
-        means = np.array([1000.0 * np.mean(seconds[counts == value]) for value in values])
-        axes.plot(values, means, style, marker=".", markersize=3, linewidth=1.0, label=label)
-    axes.set_xlabel("landmarks in state")
-    axes.set_ylabel("mean time per step [ms]")
+    style = estimator_style(label)
+    order = np.argsort(t)
+    t, nis, dof = t[order], nis[order], np.maximum(dof[order], 1)
+    axes.fill_between(
+        t,
+        chi2.ppf(0.025, dof) / dof,
+        chi2.ppf(0.975, dof) / dof,
+        color=style.color,
+        alpha=0.15,
+        linewidth=0,
+        step="mid",
+        label="95 % band",
+    )
+    axes.plot(t, nis / dof, ".", color=style.color, markersize=2, label=f"{label}: NIS / dof")
     _log_y(axes)
     axes.grid(True, alpha=0.3)
-    _legend_outside(axes)
+    axes.legend(fontsize=7, loc="upper right")
 
 
 # ---------------------------------------------------------------------------- figures
 
 
-def _trajectory_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
-    panels = [
-        pair
-        for pair in pairs
-        if pair.finished and (pair.finished[0].folder / "estimate.tum").is_file()
-    ]
-    if not panels:
+def _reference_label(run: RunRecord) -> str:
+    source = (run.metrics or {}).get("reference_source")
+    return f"reference ({source})" if source else "reference"
+
+
+def trajectory_figure(pairs: list[PairSummary], title: str, seed: int | None) -> NamedFigure | None:
+    if not pairs:
         return None
-    columns = min(3, len(panels))
-    rows = int(np.ceil(len(panels) / columns))
+    columns = min(3, len(pairs))
+    rows = int(np.ceil(len(pairs) / columns))
     figure, axes = plt.subplots(rows, columns, figsize=(4.5 * columns, 4.2 * rows), squeeze=False)
-    for ax, pair in zip(axes.ravel(), panels):
-        folder = pair.finished[0].folder
-        trajectories = {}
-        if (folder / "reference.tum").is_file():
-            trajectories["truth"] = read_tum(folder / "reference.tum")
-        trajectories["causal"] = read_tum(folder / "estimate.tum")
-        if (folder / "estimate_smoothed.tum").is_file():
-            trajectories["smoothed"] = read_tum(folder / "estimate_smoothed.tum")
-        trajectory_on_axes(ax, trajectories)
-        ax.set_title(f"{pair.estimator.title} (seed {pair.finished[0].seed})", fontsize=9)
-    for ax in axes.ravel()[len(panels) :]:
+    for ax, pair in zip(axes.ravel(), pairs, strict=False):
+        run = chosen_run(pair, seed)
+        if (
+            run is None
+            or not (run.folder / "estimate.tum").is_file()
+            and not (run.folder / "estimate_smoothed.tum").is_file()
+        ):
+            _say(ax, "no world trajectory" if run is not None else f"no finished run (seed {seed})")
+            ax.set_title(pair.estimator, fontsize=9)
+            continue
+        trajectories, styles = {}, {}
+        if (run.folder / "reference.tum").is_file():
+            label = _reference_label(run)
+            trajectories[label] = read_tum(run.folder / "reference.tum")
+            styles[label] = {"color": REFERENCE_COLOUR, "linestyle": "-", "linewidth": 0.8}
+        for kind, name in (("causal", "estimate.tum"), ("smoothed", "estimate_smoothed.tum")):
+            if (run.folder / name).is_file():
+                trajectories[kind] = read_tum(run.folder / name)
+                styles[kind] = estimator_style(pair.estimator, kind).keywords()
+        trajectory_on_axes(ax, trajectories, styles=styles)
+        ax.set_title(f"{pair.estimator} (seed {run.seed})", fontsize=9)
+    for ax in axes.ravel()[len(pairs) :]:
         ax.set_visible(False)
     figure.suptitle(title)
     return "trajectories", figure
 
 
-def _error_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
-    """Pose errors of the first seed, one row per estimator: attitude and position, each
-    component with its +/-3 sigma envelope (shaded)."""
-    found = [(pair, pair.first_errors().get("pose")) for pair in pairs]
-    found = [(pair, series) for pair, series in found if series is not None]
-    if not found:
+def _t0(pairs: list[PairSummary], seed: int | None) -> float:
+    starts = []
+    for pair in pairs:
+        run = chosen_run(pair, seed)
+        if run is not None and "pose" in run.errors and len(run.errors["pose"].t):
+            starts.append(float(run.errors["pose"].t[0]))
+        for cell in pair.cells.values():
+            if (
+                cell.averaged is not None
+                and len(cell.averaged.t)
+                and np.isfinite(cell.averaged.t[0])
+            ):
+                starts.append(float(cell.averaged.t[0]))
+    return min(starts) if starts else 0.0
+
+
+def error_figure(pairs: list[PairSummary], title: str, seed: int | None) -> NamedFigure | None:
+    """Pose errors of one seed, a row per estimator (attitude, position)."""
+    if not pairs:
         return None
+    t0 = _t0(pairs, seed)
     figure, axes = plt.subplots(
-        len(found), 2, figsize=(10, 2.2 * len(found) + 0.6), sharex=True, squeeze=False
+        len(pairs), 2, figsize=(10, 2.2 * len(pairs) + 0.6), sharex=True, squeeze=False
     )
-    for row, (pair, series) in enumerate(found):
+    for row, pair in enumerate(pairs):
+        run = chosen_run(pair, seed)
+        series = None if run is None else run.errors.get("pose")
+        if series is None:
+            reason = "no finished run" if run is None else "no pose covariance or no true pose"
+            _say(axes[row, 0], f"{pair.estimator}: {reason}")
+            _say(axes[row, 1], "")
+            continue
         if series.errors.shape[1] == 6:  # 3-D: [rotation (body), translation (body)]
-            errors_on_axes(axes[row, 0], series, (0, 1, 2), ("x", "y", "z"), np.rad2deg(1.0))
-            errors_on_axes(axes[row, 1], series, (3, 4, 5), ("x", "y", "z"))
-            axes[row, 0].set_ylabel(f"{pair.estimator.title}\nrotation [deg]", fontsize=8)
+            errors_on_axes(axes[row, 0], series, t0, (0, 1, 2), ("x", "y", "z"), np.rad2deg(1.0))
+            errors_on_axes(axes[row, 1], series, t0, (3, 4, 5), ("x", "y", "z"))
+            axes[row, 0].set_ylabel(f"{pair.estimator}\nrotation [deg]", fontsize=8)
         else:  # 2-D: [body x, body y, heading]
-            errors_on_axes(axes[row, 0], series, (2,), ("heading",), np.rad2deg(1.0))
-            errors_on_axes(axes[row, 1], series, (0, 1), ("x", "y"))
-            axes[row, 0].set_ylabel(f"{pair.estimator.title}\nheading [deg]", fontsize=8)
+            errors_on_axes(axes[row, 0], series, t0, (2,), ("heading",), np.rad2deg(1.0))
+            errors_on_axes(axes[row, 1], series, t0, (0, 1), ("x", "y"))
+            axes[row, 0].set_ylabel(f"{pair.estimator}\nheading [deg]", fontsize=8)
         axes[row, 1].set_ylabel("position (body) [m]", fontsize=8)
-    axes[-1, 0].set_xlabel("t [s]")
-    axes[-1, 1].set_xlabel("t [s]")
+    axes[-1, 0].set_xlabel(f"t - {t0:.6g} [s]")
+    axes[-1, 1].set_xlabel(f"t - {t0:.6g} [s]")
     figure.suptitle(
-        f"{title}: pose errors (truth - estimate) with +/-3 sigma, first seed", fontsize=10
+        f"{title}: pose errors (truth - estimate) with +/-3 sigma, seed {seed if seed is not None else 'first'}",
+        fontsize=10,
     )
     return "pose_errors", figure
 
 
-def _anees_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
-    blocks = [
-        block for block in NEES_BLOCK_TITLES if any(block in pair.averaged_nees for pair in pairs)
-    ]
+def consistency_figure(pairs: list[PairSummary], title: str) -> NamedFigure | None:
+    blocks = [block for block in TABLE_BLOCKS if any(block in pair.cells for pair in pairs)]
     if not blocks:
         return None
-    figure, axes = plt.subplots(len(blocks), 1, figsize=(9, 2.8 * len(blocks)), squeeze=False)
-    for ax, block in zip(axes[:, 0], blocks):
-        curves = {
-            pair.estimator.title: (pair.averaged_nees[block], _line_style(pair))
+    t0 = _t0(pairs, None)
+    figure, axes = plt.subplots(len(blocks), 1, figsize=(9.5, 2.8 * len(blocks)), squeeze=False)
+    for ax, block in zip(axes[:, 0], blocks, strict=True):
+        curves = [
+            (pair.estimator, pair.cells[block].scored, pair.cells[block].averaged)
             for pair in pairs
-            if block in pair.averaged_nees
-        }
-        anees_on_axes(ax, curves)
-        ax.set_title(f"{title}: averaged NEES, {NEES_BLOCK_TITLES[block]}, 95% band", fontsize=9)
-    return "anees", figure
+            if block in pair.cells and pair.cells[block].averaged is not None
+        ]
+        consistency_on_axes(ax, curves, t0)
+        ax.set_title(f"{title}: {BLOCK_TITLES[block]}, averaged over runs, 95% band", fontsize=9)
+        ax.set_xlabel(f"t - {t0:.6g} [s]")
+    return "consistency", figure
 
 
-def _nis_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
-    panels = [pair for pair in pairs if pair.series and len(pair.series[0].nis)]
+def nis_figure(pairs: list[PairSummary], title: str, seed: int | None) -> NamedFigure | None:
+    panels = [(pair, chosen_run(pair, seed)) for pair in pairs if "nis" in pair.cells]
+    panels = [(pair, run) for pair, run in panels if run is not None]
     if not panels:
         return None
+    t0 = _t0(pairs, seed)
     figure, axes = plt.subplots(
-        len(panels), 1, figsize=(7.5, 2.6 * len(panels)), sharex=True, squeeze=False
+        len(panels), 1, figsize=(8, 2.4 * len(panels)), sharex=True, squeeze=False
     )
-    for ax, pair in zip(axes[:, 0], panels):
-        series = pair.series[0]
-        nis_on_axes(ax, series.nis_t, series.nis, series.nis_dof)
-        ax.set_title(
-            f"{title}: {pair.estimator.title} NIS, seed {pair.finished[0].seed}", fontsize=9
-        )
+    for ax, (pair, run) in zip(axes[:, 0], panels, strict=True):
+        t, nis, dof = _npz(run.folder, "diag_scan_nis_t", "diag_scan_nis", "diag_scan_nis_dof")
+        nis_on_axes(ax, pair.estimator, t - t0, nis, dof)
+        ax.set_title(f"{title}: {pair.estimator}, seed {run.seed}", fontsize=9)
+    axes[-1, 0].set_xlabel(f"t - {t0:.6g} [s]")
     return "nis", figure
 
 
-def _landmark_count_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
-    counts = {
-        pair.estimator.title: (pair.series[0], _line_style(pair))
-        for pair in pairs
-        if pair.series and len(pair.series[0].count)
-    }
-    if not counts:
+def landmark_count_figure(
+    pairs: list[PairSummary], title: str, seed: int | None
+) -> NamedFigure | None:
+    found = []
+    for pair in pairs:
+        run = chosen_run(pair, seed)
+        if run is not None:
+            t, count = _npz(run.folder, "diag_landmark_count_t", "diag_landmark_count")
+            if len(count):
+                found.append((pair.estimator, t, count))
+    if not found:
         return None
+    t0 = min(float(t[0]) for _, t, _ in found)
     figure, axes = plt.subplots(figsize=(9, 3.2))
-    landmark_count_on_axes(axes, counts)
-    axes.set_title(f"{title}: landmarks in the state (first seed)", fontsize=9)
+    for label, t, count in found:
+        axes.step(
+            t - t0,
+            count,
+            where="post",
+            label=label,
+            linewidth=1.0,
+            **estimator_style(label).keywords(),
+        )
+    axes.set_xlabel(f"t - {t0:.6g} [s]")
+    axes.set_ylabel("landmarks in state")
+    axes.grid(True, alpha=0.3)
+    _legend_outside(axes)
+    axes.set_title(
+        f"{title}: landmarks in the state (seed {seed if seed is not None else 'first'})",
+        fontsize=9,
+    )
     return "landmark_count", figure
 
 
-def _time_figure(pairs: list[PairResults], title: str) -> NamedFigure | None:
-    runs = {
-        pair.estimator.title: (list(pair.series), _line_style(pair))
-        for pair in pairs
-        if pair.series and any(len(s.timing_t) for s in pair.series)
-    }
-    if not runs:
+def time_per_landmarks(folder: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(landmarks in the state at each processed measurement, its time [s]) of one run."""
+    timing_t, seconds, count_t, count = _npz(
+        folder, "timing_t", "timing_seconds", "diag_landmark_count_t", "diag_landmark_count"
+    )
+    if len(timing_t) == 0:
+        return np.zeros(0, dtype=int), np.zeros(0)
+    if len(count_t) == 0:
+        return np.zeros(len(timing_t), dtype=int), seconds
+    index = np.searchsorted(count_t, timing_t, side="right") - 1
+    counts = np.where(index >= 0, count[np.clip(index, 0, None)], 0)
+    return counts.astype(int), seconds
+
+
+def time_figure(pairs: list[PairSummary], title: str) -> NamedFigure | None:
+    found = []
+    for pair in pairs:
+        pooled = [time_per_landmarks(run.folder) for run in pair.finished_runs]
+        counts = np.concatenate([c for c, _ in pooled]) if pooled else np.zeros(0, dtype=int)
+        seconds = np.concatenate([s for _, s in pooled]) if pooled else np.zeros(0)
+        if counts.size:
+            values = np.unique(counts)
+            means = np.array([1000.0 * np.mean(seconds[counts == value]) for value in values])
+            found.append((pair.estimator, values, means))
+    if not found:
         return None
     figure, axes = plt.subplots(figsize=(9, 3.6))
-    time_vs_landmarks_on_axes(axes, runs)
-    axes.set_title(
-        f"{title}: time per step vs landmarks (filters solid, smoothers dashed)", fontsize=9
-    )
+    for label, values, means in found:
+        axes.plot(
+            values,
+            means,
+            linewidth=1.0,
+            label=label,
+            **estimator_style(label).keywords(len(values)),
+        )
+    axes.set_xlabel("landmarks in state")
+    axes.set_ylabel("mean time per step [ms]")
+    _log_y(axes)
+    axes.grid(True, alpha=0.3)
+    _legend_outside(axes)
+    axes.set_title(f"{title}: time per step vs landmarks (every run)", fontsize=9)
     return "time_vs_landmarks", figure
 
 
+def dataset_figures(
+    pairs: list[PairSummary], title: str, seed: int | None = None
+) -> list[NamedFigure]:
+    """Every figure of one dataset's pairs (those with finished runs)."""
+    pairs = [pair for pair in pairs if pair.finished_runs]
+    builders = (
+        lambda: trajectory_figure(pairs, title, seed),
+        lambda: error_figure(pairs, title, seed),
+        lambda: consistency_figure(pairs, title),
+        lambda: nis_figure(pairs, title, seed),
+        lambda: landmark_count_figure(pairs, title, seed),
+        lambda: time_figure(pairs, title),
+    )
+    return [built for build in builders if (built := build()) is not None]
+
+
 def write_dataset_plots(
-    plan: Plan, dataset: DatasetSpec, formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS
+    folders: list[Path],
+    title: str,
+    out: Path,
+    formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS,
+    seed: int | None = None,
 ) -> list[Path]:
-    """Every figure of one dataset into ``OUT/plots/<dataset>/`` in each of ``formats``
-    (a worker task)."""
-    pairs = [pair for pair in collect(plan) if pair.dataset == dataset and pair.finished]
-    out = plan.out / "plots" / dataset.folder_name
+    """Every figure of one dataset's run folders into ``out`` (a worker task)."""
+    from workbench.results.runs import read_run
+    from workbench.results.summary import summarize
+
+    pairs = summarize([read_run(folder) for folder in folders])
     written: list[Path] = []
-    for figure_builder in (
-        _trajectory_figure,
-        _error_figure,
-        _anees_figure,
-        _nis_figure,
-        _landmark_count_figure,
-        _time_figure,
-    ):
-        built = figure_builder(pairs, dataset.title)
-        if built is not None:
-            name, figure = built
-            written += save_figure(figure, out / name, formats)
+    for name, figure in dataset_figures(pairs, title, seed):
+        written += save_figure(figure, Path(out) / name, formats)
     return written

@@ -7,6 +7,7 @@ Layout (all directly in the folder)::
     estimate_smoothed.tum  smoothed trajectory (smoothers)
     reference.tum          ground-truth trajectory, when known
     estimate.npz           covariances, state blocks, final map, diagnostics, timing
+    consistency.npz        per-step NEES of every block (causal and smoothed), map NEES, NIS
     events.json            discrete events (loop closures, skips) and the estimator's notes
     metrics.json           flat metrics with units, plus provenance (git revision, seed, versions)
     plots/*.png            figures (see ``workbench.plots``; PDF/SVG with --plot-format)
@@ -29,6 +30,7 @@ import yaml
 from datasets.estimate import Estimate
 from datasets.state import StateHistory
 from datasets.trajectory_io import save_npz_atomic, write_atomic, write_tum
+from workbench.results.consistency import CONSISTENCY_FILE, save_run_consistency
 from workbench.runner import RunResult
 
 METRICS_FILE = "metrics.json"
@@ -138,10 +140,14 @@ def dump_json(data: Any) -> str:
 
 def run_provenance(result: RunResult) -> dict[str, Any]:
     request = result.request
+    dataset_label, estimator_label = request.labels
     return {
         "estimator": request.estimator,
         "dataset": result.sequence.name,
+        "dataset_label": dataset_label if request.dataset_label else result.sequence.name,
+        "estimator_label": estimator_label,
         "seed": request.seed,
+        "reference_source": result.sequence.metadata.get("reference_source"),
         "git_revision": git_revision(),
         "package_versions": package_versions(),
     }
@@ -184,6 +190,7 @@ def write_run_folder(
         ],
     }
     write_atomic(out_dir / "events.json", dump_json(events))
+    save_run_consistency(estimate, result.sequence, out_dir / CONSISTENCY_FILE)
     metrics = compute_metrics(estimate, result.sequence)
     metrics.update(run_provenance(result))
     if plot_formats:
@@ -198,3 +205,16 @@ def write_run_folder(
         )
     write_atomic(out_dir / METRICS_FILE, dump_json(metrics))
     return metrics
+
+
+def write_failed_run(
+    folder: Path, request: dict[str, Any], message: str, details: str = ""
+) -> None:
+    """A failed run's folder: the request it failed on (``bench_request.json``) and the
+    error (``error.json``), which ``workbench.results`` reads as a failed row."""
+    from workbench.results.runs import ERROR_FILE, REQUEST_FILE
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_atomic(folder / REQUEST_FILE, dump_json(request))
+    write_atomic(folder / ERROR_FILE, dump_json({"error": message, "traceback": details}))

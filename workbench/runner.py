@@ -110,6 +110,13 @@ class RunRequest:
     config_file: Path | None = None
     overrides: tuple[tuple[str, str], ...] = ()
     data_options: tuple[tuple[str, str], ...] = ()
+    dataset_label: str = ""
+    estimator_label: str = ""
+
+    @property
+    def labels(self) -> tuple[str, str]:
+        """(dataset, estimator) names tables group by: a suite's labels, else the names."""
+        return self.dataset_label or self.dataset, self.estimator_label or self.estimator
 
 
 @dataclass(frozen=True)

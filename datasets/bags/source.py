@@ -297,6 +297,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         initial_state=_initial_state(start_s, ground_truth.pose if ground_truth else None),
         metadata={
             "source": str(path),
+            "reference_source": f"topic {topics.ground_truth}" if topics.ground_truth else None,
             "topics": {
                 "lidar": topics.lidar,
                 "imu": imu_topic,

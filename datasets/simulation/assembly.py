@@ -207,5 +207,5 @@ def build_sequence(
             positions=data.landmark_positions[order].copy(),
             frame=Frame.WORLD,
         ),
-        metadata=metadata,
+        metadata={**metadata, "reference_source": "simulated truth"},
     )

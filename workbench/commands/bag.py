@@ -8,7 +8,9 @@
 2. Runs each chosen estimator (default: every registered one the bag's sensors allow) on the
    resulting stream (the front end is cached, so it runs once) and writes ``DIR/<name>/``
    run folders with the workbench runner.
-3. Writes ``DIR/table.md`` and ``DIR/table.csv``: one row for KISS-ICP, one per estimator.
+3. Writes ``DIR/table.md``, ``table.tex`` and ``table.csv`` through the one table writer
+   (``workbench.reporting``): a row per estimator (a failed one says why), KISS-ICP's own
+   figures in a note under it.
 
 Every file is written atomically, the front end's before any estimator runs, so a failure
 later leaves what was already written valid. An estimator that fails is reported in its
@@ -30,16 +32,6 @@ import typer
 from datasets.errors import InputError
 from datasets.options import build_model, parse_assignments
 from workbench.plot_formats import parse_plot_formats
-
-TABLE_COLUMNS = (
-    ("ate_rmse_m", "ATE RMSE [m]"),
-    ("rpe_trans_rmse_m", "RPE trans RMSE [m]"),
-    ("rpe_rot_rmse_deg", "RPE rot RMSE [deg]"),
-    ("nees_pose_mean", "NEES pose mean"),
-    ("association_precision", "assoc. precision"),
-    ("time_per_step_ms_median", "step median [ms]"),
-    ("time_total_s", "total [s]"),
-)
 
 
 def _progress(disable: bool):
@@ -202,35 +194,6 @@ def _status(text: str, limit: int = 160) -> str:
     return flat if len(flat) <= limit else flat[: limit - 3] + "..."
 
 
-def _cell(value) -> str:
-    if value is None:
-        return "-"
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    return str(value)
-
-
-def write_tables(out: Path, rows: list[dict]) -> None:
-    """``table.md`` and ``table.csv``: estimator, status, then ``TABLE_COLUMNS``."""
-    from datasets.trajectory_io import write_atomic
-
-    headers = ["estimator", "status"] + [title for _, title in TABLE_COLUMNS]
-    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(["estimator", "status"] + [key for key, _ in TABLE_COLUMNS])
-    for row in rows:
-        values = [row.get(key) for key, _ in TABLE_COLUMNS]
-        lines.append(
-            "| " + " | ".join([row["estimator"], row["status"]] + [_cell(v) for v in values]) + " |"
-        )
-        writer.writerow(
-            [row["estimator"], row["status"]] + ["" if v is None else v for v in values]
-        )
-    write_atomic(out / "table.md", "\n".join(lines) + "\n")
-    write_atomic(out / "table.csv", buffer.getvalue())
-
-
 def choose_estimators(requested: str | None, sequence) -> list[str]:
     """The requested names (checked), or every registered estimator the sequence allows."""
     from workbench.registry import ESTIMATORS, estimator_entry
@@ -276,7 +239,9 @@ def bag_command(
     from datasets.bags.reader import open_bag
     from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
     from datasets.trajectory_io import write_atomic, write_tum
-    from workbench.run_folder import dump_json, write_run_folder
+    from workbench.reporting import write_report
+    from workbench.results.runs import load_runs
+    from workbench.run_folder import dump_json, write_failed_run, write_run_folder
     from workbench.runner import RunRequest, execute
 
     options = parse_assignments(data, "--data")
@@ -315,14 +280,12 @@ def bag_command(
         typer.echo(f"warning: {path}: {line}", err=True)
 
     sequence = with_corner_ids(sequence, source)
-    rows = [
-        {
-            "estimator": "kiss-icp (front end)",
-            "status": "ok",
-            "ate_rmse_m": front["kiss_icp_ate_rmse_m"],
-            "time_per_step_ms_median": front["kiss_icp_ms_median"],
-        }
-    ]
+    rows = [{"estimator": "kiss-icp (front end)", "status": "ok"}]
+    front_note = f"front end kiss-icp: {front['kiss_icp_ms_median']:.3g} ms per frame (median)" + (
+        f", ATE {front['kiss_icp_ate_rmse_m']:.4g} m against the truth topic"
+        if front["kiss_icp_ate_rmse_m"] is not None
+        else ""
+    )
     data_options = tuple(options.items())
     for name in names:
         row = {"estimator": name, "status": "ok"}
@@ -351,17 +314,19 @@ def bag_command(
                         task, completed=t - start
                     ),
                 )
-            metrics = write_run_folder(result, out / name, plot_formats if plots else ())
-            row.update({key: metrics.get(key) for key, _ in TABLE_COLUMNS})
+            write_run_folder(result, out / name, plot_formats if plots else ())
         except InputError as error:
             row["status"] = _status(f"not run: {error}")
             typer.echo(f"warning: {name}: {error}", err=True)
         except Exception as error:  # one estimator's failure must not lose the others' results
             row["status"] = _status(f"failed: {type(error).__name__}: {error}")
             typer.echo(f"warning: {name} failed: {row['status']}", err=True)
+        if row["status"] != "ok":
+            request = {"dataset": sequence.name, "estimator": name, "seed": 0}
+            write_failed_run(out / name, request, row["status"])
         rows.append(row)
-        write_tables(out, rows)
-    write_tables(out, rows)
+    folders = [out / name for name in names]
+    write_report(load_runs(folders), out, notes=[front_note], plot_formats=())
     return rows
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -17,6 +18,7 @@ import typer
 
 from datasets.errors import InputError
 from workbench.plot_formats import parse_plot_formats
+from workbench.reporting import Report
 from workbench.suites import DEFAULT_SUITE, SUITES, get_suite, restrict
 
 
@@ -33,11 +35,10 @@ def bench(
     datasets: list[str] | None = None,
     estimators: list[str] | None = None,
     plot_formats: tuple[str, ...] = ("png",),
-) -> dict[str, Path]:
-    """Run the suite and write tables and plots (in each of ``plot_formats``); returns the
-    written table paths and the plots folder (key ``plots``). ``report_only``: run nothing,
-    report the runs on disk (unfinished ones show as missing). ``datasets`` /
-    ``estimators``: only these of the suite (names or labels)."""
+) -> BenchOutcome:
+    """Run the suite and write tables and plots (in each of ``plot_formats``).
+    ``report_only``: run nothing, report the runs on disk (no dataset is probed).
+    ``datasets`` / ``estimators``: only these of the suite (names or labels)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -47,14 +48,21 @@ def bench(
         TimeRemainingColumn,
     )
 
+    from workbench.reporting import write_report
+    from workbench.results.runs import load_runs, read_run
+    from workbench.results.summary import PlannedPair
     from workbench.sweep import pending_cells, run_sweep
     from workbench.sweep.backends import make_backend
     from workbench.sweep.plan import plan_sweep
-    from workbench.tables import write_tables
 
     suite = restrict(get_suite(suite_name), datasets, estimators)
     runs = suite.default_runs if runs is None else runs
     out = Path(out).resolve()
+    formats = plot_formats if plots else ()
+    if report_only:
+        # what is on disk, without probing any dataset again
+        report = write_report(load_runs([out / "runs"]), out, plot_formats=formats)
+        return BenchOutcome(report, failed=sum(1 for r in report.rows for _ in r.errors()))
     interactive = sys.stderr.isatty() if show_progress is None else show_progress
     backend = make_backend(scheduler, workers)
     try:
@@ -63,8 +71,6 @@ def bench(
         for note in plan.notes:
             typer.echo(f"note: {note}", err=True)
         pending, done = pending_cells(plan)
-        if report_only:
-            pending = []
         typer.echo(
             f"suite {suite.name}: {len(plan.cells)} runs ({done} already done, {len(pending)} to run) on {backend.describe()}",
             err=True,
@@ -101,26 +107,45 @@ def bench(
                 cells=pending,
             )
         swept = time.perf_counter()
-        written: dict[str, Path] = dict(write_tables(plan))
-        if plots:
-            from workbench.report_plots import write_dataset_plots
-
-            futures = [
-                backend.submit(write_dataset_plots, plan, dataset, plot_formats)
-                for dataset in plan.datasets
-            ]
-            for future in futures:
-                future.result()
-        written["plots"] = out / "plots"
+        records = [
+            read_run(cell.folder)
+            for cell in plan.cells
+            if cell.is_finished() or (cell.folder / "error.json").is_file()
+        ]
+        pairs = [
+            PlannedPair(
+                dataset.title,
+                estimator.title,
+                estimator.name,
+                len(plan.cells_of(dataset, estimator)),
+                plan.not_applicable_reason(dataset, estimator),
+            )
+            for dataset in plan.datasets
+            for estimator in plan.estimators
+        ]
+        report = write_report(records, out, pairs, list(plan.notes), formats, submit=backend.submit)
+        failed = sum(1 for record in records if not record.finished)
         typer.echo(
-            f"{summary.ran} run(s) done, {summary.skipped} skipped (finished before), {len(summary.failed)} failed; "
+            f"{summary.ran} run(s) done, {summary.skipped} skipped (finished before), {failed} failed; "
             f"{time.perf_counter() - started:.1f} s (planning {planned - started:.1f} s, runs {swept - planned:.1f} s, "
             f"tables and plots {time.perf_counter() - swept:.1f} s)",
             err=True,
         )
-        return written
+        return BenchOutcome(report, failed)
     finally:
         backend.close()
+
+
+@dataclass(frozen=True)
+class BenchOutcome:
+    """What a bench wrote (``report``) and how many of its runs failed."""
+
+    report: Report
+    failed: int
+
+    @property
+    def tables(self) -> dict[str, Path]:
+        return self.report.tables
 
 
 def register(app: typer.Typer) -> None:
@@ -170,7 +195,7 @@ def register(app: typer.Typer) -> None:
         then the comparison table and plots. Re-running resumes."""
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
-        written = bench(
+        outcome = bench(
             suite,
             runs,
             out or Path("runs") / suite,
@@ -183,7 +208,22 @@ def register(app: typer.Typer) -> None:
             estimators=estimator,
             plot_formats=parse_plot_formats(plot_format),
         )
-        typer.echo(written["md"].read_text(), nl=False)
-        typer.echo(f"table: {written['md']} (.tex, .csv)")
-        if plots:
-            typer.echo(f"plots: {written['plots']}")
+        show_report(outcome.report, f"suite {suite}")
+        if outcome.failed:
+            typer.echo(f"error: {outcome.failed} run(s) failed (listed under the table)", err=True)
+            raise typer.Exit(3)  # the tables are written; 1 is kept for bugs, 2 for bad input
+
+
+def show_report(report: Report, title: str) -> None:
+    """The compact terminal table, the notes, and where the files are."""
+    from rich.console import Console
+
+    from workbench.results.tables import table_notes, terminal_table
+
+    console = Console(width=max(100, Console().width))
+    console.print(terminal_table(report.rows, title))
+    for note in table_notes(report.rows, report.notes):
+        typer.echo(f"- {note}")
+    typer.echo(f"table: {report.tables['md']} (.tex, .csv: every column)")
+    if report.plots is not None:
+        typer.echo(f"plots: {report.plots}")

@@ -24,12 +24,18 @@ consistency (``state_errors.nees_series``: truth looked up at the estimate's tim
     ``nees_velocity_mean``, ``nees_gyro_bias_mean``, ``nees_accel_bias_mean``,
     ``nees_landmarks_mean`` (per landmark and snapshot, d dof; the final map when no
     snapshot was recorded). Means skip NaN values (singular covariances).
-innovations: ``nis_mean``, ``nis_dof`` (None when dofs differ), ``nis_inside_fraction``
-    (two-sided 95% per dof), ``nis_below_95_fraction`` (one-sided, Guerreiro eq. (11)).
+innovations: ``nis_per_dof`` (every update's stacked NIS summed over the summed dof: the
+    figure comparable across estimators), ``nis_update_inside_fraction`` (updates inside
+    their two-sided 95% band); per associated measurement ``nis_mean``, ``nis_dof`` (None
+    when dofs differ), ``nis_inside_fraction`` (two-sided 95% per dof),
+    ``nis_below_95_fraction`` (one-sided, Guerreiro eq. (11)).
 map (``Estimate.landmarks`` against ``GroundTruth.landmarks``; estimator ids mapped to true
 ids by ``data_association.landmark_id_mapping``: majority true id of the association
 records, else the same id): ``landmark_rmse_m``, ``landmarks_mapped``.
-association: ``association_precision``, ``association_recall``, ``loop_closures`` (events),
+association: ``association_rejected_fraction``, ``association_ambiguous_fraction`` (of all
+    sightings: not used), ``association_inflated_fraction`` (used with inflated noise: a
+    known id outside the gate), ``association_precision``, ``association_recall``,
+    ``loop_closures`` (events),
     ``loop_closure_precision`` (``data_association``).
 cost: ``steps`` (timing entries = measurements processed; without timing, causal pose
     records), ``time_per_step_ms_median``, ``time_per_step_ms_p99``, ``time_total_s``.
@@ -195,12 +201,21 @@ def consistency_metrics(
 
 
 def nis_metrics(estimate: Estimate) -> Metrics:
-    """NIS statistics of the estimate's innovations."""
+    """NIS statistics of the estimate's innovations: per update (stacked, comparable across
+    estimators) and per associated measurement."""
     diagnostics = estimate.diagnostics
+    metrics: Metrics = {"nis_per_dof": None, "nis_update_inside_fraction": None}
+    stacked = np.asarray(diagnostics.scan_nis, dtype=float)
+    stacked_dof = np.asarray(diagnostics.scan_nis_dof, dtype=int)
+    finite = np.isfinite(stacked)
+    if np.any(finite) and stacked_dof[finite].sum() > 0:
+        metrics["nis_per_dof"] = _number(stacked[finite].sum() / stacked_dof[finite].sum())
+        metrics["nis_update_inside_fraction"] = _number(inside_fraction(stacked, stacked_dof))
     values = np.asarray(diagnostics.nis, dtype=float)
     dofs = np.asarray(diagnostics.nis_dof, dtype=int)
     if values.size == 0:
         return {
+            **metrics,
             "nis_mean": None,
             "nis_dof": None,
             "nis_inside_fraction": None,
@@ -208,6 +223,7 @@ def nis_metrics(estimate: Estimate) -> Metrics:
         }
     unique = np.unique(dofs)
     return {
+        **metrics,
         "nis_mean": _finite_mean(values),
         "nis_dof": int(unique[0]) if len(unique) == 1 else None,
         "nis_inside_fraction": _number(inside_fraction(values, dofs)),
@@ -230,7 +246,16 @@ def map_metrics(
 def association_metrics(estimate: Estimate, ground_truth: GroundTruth | None) -> Metrics:
     """Association precision/recall and loop-closure counts and precision."""
     diagnostics = estimate.diagnostics
+    decisions = np.asarray(diagnostics.assoc_decision)
+    sightings = len(decisions)
+
+    def fraction(mask: np.ndarray) -> float | None:
+        return _number(np.mean(mask)) if sightings else None
+
     metrics: Metrics = {
+        "association_rejected_fraction": fraction(decisions == "rejected"),
+        "association_ambiguous_fraction": fraction(decisions == "ambiguous"),
+        "association_inflated_fraction": fraction(np.asarray(diagnostics.assoc_inflation) > 1.0),
         "association_precision": None,
         "association_recall": None,
         "loop_closures": sum(1 for event in diagnostics.events if event.kind == "loop_closure"),

@@ -67,7 +67,7 @@ class LocalBackend:
         os.environ.update(_SINGLE_THREAD_ENVIRONMENT)  # inherited by the fork server
         context = multiprocessing.get_context("forkserver")
         context.set_forkserver_preload(
-            ["workbench.sweep", "workbench.runner", "workbench.monte_carlo"]
+            ["workbench.sweep", "workbench.runner", "workbench.results.consistency"]
         )
         self._executor = concurrent.futures.ProcessPoolExecutor(
             self.workers, mp_context=context, initializer=_exit_with_sweep, initargs=(os.getpid(),)

@@ -37,8 +37,7 @@ def run_cell(cell: Cell, plot_formats: tuple[str, ...] = ()) -> CellOutcome:
     """Run one cell and write its run folder, with its own figures in ``plot_formats`` (none
     by default), as a worker task. Never raises: a failure is recorded in ``error.json``
     and returned."""
-    from workbench.monte_carlo import NEES_FILE, save_run_nees
-    from workbench.run_folder import write_run_folder
+    from workbench.run_folder import write_failed_run, write_run_folder
     from workbench.runner import RunRequest, execute
 
     start = time.perf_counter()
@@ -55,13 +54,14 @@ def run_cell(cell: Cell, plot_formats: tuple[str, ...] = ()) -> CellOutcome:
         seed=cell.seed,
         overrides=cell.overrides,
         data_options=cell.dataset.options,
+        dataset_label=cell.dataset.title,
+        estimator_label=cell.estimator.title,
     )
     try:
         result = execute(request)
-        save_run_nees(result.estimate, result.sequence, folder / NEES_FILE)
         write_run_folder(result, folder, plot_formats)  # writes metrics.json last
     except Exception as error:  # noqa: BLE001 - one failed run must not stop the sweep
         message = one_line(error)
-        _write_json(folder / ERROR_FILE, {"error": message, "traceback": traceback.format_exc()})
+        write_failed_run(folder, cell.request_record(), message, traceback.format_exc())
         return CellOutcome(folder, time.perf_counter() - start, message)
     return CellOutcome(folder, time.perf_counter() - start)

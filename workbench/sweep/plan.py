@@ -43,6 +43,8 @@ class Cell:
         """What defines the run (compared on resume)."""
         return {
             "dataset": self.dataset_name,
+            "dataset_label": self.dataset.title,
+            "estimator_label": self.estimator.title,
             "data_options": dict(self.dataset.options),
             "estimator": self.estimator.name,
             "overrides": dict(self.overrides),

@@ -1,0 +1,64 @@
+"""Tables and figures of any set of runs, the same for ``workbench bench``, ``workbench
+report`` and ``workbench bag``: rows per pair (``results.summary``), ``table.md``,
+``table.tex``, ``table.csv`` (``results.tables``) and ``plots/<dataset>/`` per dataset
+(``report_plots``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from workbench.plot_formats import DEFAULT_PLOT_FORMATS
+from workbench.results.runs import RunRecord
+from workbench.results.summary import PairSummary, PlannedPair, summarize
+from workbench.results.tables import write_tables
+from workbench.suites import slug
+
+
+@dataclass(frozen=True)
+class Report:
+    """What a report wrote: the rows, the table files by suffix, the plots folder (None
+    without figures), and the notes under the table."""
+
+    rows: list[PairSummary]
+    tables: dict[str, Path]
+    plots: Path | None
+    notes: list[str]
+
+
+def write_report(
+    records: list[RunRecord],
+    out: Path,
+    planned: list[PlannedPair] | None = None,
+    notes: list[str] = (),
+    plot_formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS,
+    seed: int | None = None,
+    submit: Callable[..., Any] | None = None,
+) -> Report:
+    """Tables of ``records`` into ``out`` and, unless ``plot_formats`` is empty, the figures
+    of each dataset into ``out/plots/<dataset>`` (``seed``: the run the per-run figures
+    show, the first by default; ``submit``: a backend's submit to draw datasets in
+    parallel)."""
+    from workbench.report_plots import write_dataset_plots
+
+    out = Path(out)
+    rows = summarize(records, planned)
+    tables = write_tables(rows, out, list(notes))
+    if not plot_formats:
+        return Report(rows, tables, None, list(notes))
+    datasets: dict[str, list[Path]] = {}
+    for record in records:
+        if record.finished:
+            datasets.setdefault(record.dataset_label, []).append(record.folder)
+    jobs = []
+    for dataset, folders in datasets.items():
+        arguments = (folders, dataset, out / "plots" / slug(dataset), plot_formats, seed)
+        jobs.append(
+            submit(write_dataset_plots, *arguments) if submit else write_dataset_plots(*arguments)
+        )
+    if submit:
+        for job in jobs:
+            job.result()
+    return Report(rows, tables, out / "plots", list(notes))

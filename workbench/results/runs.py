@@ -1,0 +1,171 @@
+"""Run folders read back: any folders, from any command, suite or day.
+
+A run folder is one that holds ``metrics.json`` (a finished run: ``workbench.run_folder``)
+or ``error.json`` (a sweep's failed run, with the request it failed on in
+``bench_request.json``). ``load_runs`` finds them below the given paths and returns one
+``RunRecord`` each; ``runs_frame`` turns them into the tidy table (pandas, one row per run,
+the metrics.json keys as columns): the one vocabulary of metrics.json, table.csv and the
+Python API.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+from datasets.errors import InputError
+from workbench.results.consistency import (
+    CONSISTENCY_FILE,
+    ErrorSeries,
+    StepSeries,
+    load_error_series,
+    load_run_consistency,
+)
+
+METRICS_FILE = "metrics.json"
+ERROR_FILE = "error.json"
+REQUEST_FILE = "bench_request.json"
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One run folder.
+
+    Attributes:
+        folder: where it is.
+        dataset, estimator: the registered names (``sim:circle``, ``ekf-slam``).
+        dataset_label, estimator_label: the names tables and plots group by (a suite's
+            labels, e.g. ``sim:guerreiro-loop (ids=false)``; the names otherwise).
+        seed: the dataset seed.
+        metrics: the metrics.json dictionary, None when the run failed.
+        error: the failure's one line, None when it finished.
+    """
+
+    folder: Path
+    dataset: str
+    estimator: str
+    dataset_label: str
+    estimator_label: str
+    seed: int
+    metrics: dict[str, Any] | None = field(default=None, compare=False)
+    error: str | None = None
+
+    @property
+    def finished(self) -> bool:
+        return self.metrics is not None
+
+    @cached_property
+    def consistency(self) -> dict[str, StepSeries]:
+        """The run's NEES/NIS series ({} when the folder has none)."""
+        path = self.folder / CONSISTENCY_FILE
+        return load_run_consistency(path) if path.is_file() else {}
+
+    @cached_property
+    def errors(self) -> dict[str, ErrorSeries]:
+        """The run's causal error series ({} when the folder has none)."""
+        path = self.folder / CONSISTENCY_FILE
+        return load_error_series(path) if path.is_file() else {}
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        found = json.loads(path.read_text())
+    except (OSError, ValueError) as error:
+        raise InputError(f"{path}: not a readable JSON file ({error})") from None
+    if not isinstance(found, dict):
+        raise InputError(f"{path}: expected a JSON object")
+    return found
+
+
+def read_run(folder: Path) -> RunRecord:
+    """The record of one run folder (``InputError`` when it is not one)."""
+    folder = Path(folder)
+    if (folder / METRICS_FILE).is_file():
+        metrics = _read_json(folder / METRICS_FILE)
+        return RunRecord(
+            folder=folder,
+            dataset=str(metrics.get("dataset")),
+            estimator=str(metrics.get("estimator")),
+            dataset_label=str(metrics.get("dataset_label") or metrics.get("dataset")),
+            estimator_label=str(metrics.get("estimator_label") or metrics.get("estimator")),
+            seed=int(metrics.get("seed") or 0),
+            metrics=metrics,
+        )
+    if (folder / ERROR_FILE).is_file():
+        request = _read_json(folder / REQUEST_FILE) if (folder / REQUEST_FILE).is_file() else {}
+        failure = _read_json(folder / ERROR_FILE)
+        return RunRecord(
+            folder=folder,
+            dataset=str(request.get("dataset")),
+            estimator=str(request.get("estimator")),
+            dataset_label=str(request.get("dataset_label") or request.get("dataset")),
+            estimator_label=str(request.get("estimator_label") or request.get("estimator")),
+            seed=int(request.get("seed") or 0),
+            error=str(failure.get("error")),
+        )
+    raise InputError(f"{folder}: not a run folder (no {METRICS_FILE} or {ERROR_FILE})")
+
+
+def find_run_folders(paths: list[Path]) -> list[Path]:
+    """Run folders at or below ``paths``, in a stable order; ``InputError`` for a path that
+    does not exist or holds none."""
+    found: list[Path] = []
+    for path in map(Path, paths):
+        if not path.exists():
+            raise InputError(f"{path}: no such file or folder")
+        if (path / METRICS_FILE).is_file() or (path / ERROR_FILE).is_file():
+            found.append(path)
+            continue
+        below = sorted(
+            {marker.parent for name in (METRICS_FILE, ERROR_FILE) for marker in path.rglob(name)}
+        )
+        if not below:
+            raise InputError(f"{path}: holds no run folder (no {METRICS_FILE} below it)")
+        found += below
+    return list(dict.fromkeys(found))
+
+
+def load_runs(paths: list[Path] | Path) -> list[RunRecord]:
+    """Every run folder at or below ``paths`` (a path or a list of them)."""
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    return [read_run(folder) for folder in find_run_folders(list(paths))]
+
+
+IDENTITY_COLUMNS = (
+    "dataset",
+    "estimator",
+    "dataset_label",
+    "estimator_label",
+    "seed",
+    "folder",
+    "status",
+    "error",
+)
+
+
+def runs_frame(records: list[RunRecord]):
+    """The tidy table: one row per run, identity columns then every metrics.json key
+    (nested provenance such as package versions left out)."""
+    import pandas as pd
+
+    rows = []
+    for record in records:
+        row: dict[str, Any] = {
+            "dataset": record.dataset,
+            "estimator": record.estimator,
+            "dataset_label": record.dataset_label,
+            "estimator_label": record.estimator_label,
+            "seed": record.seed,
+            "folder": str(record.folder),
+            "status": "ok" if record.finished else "failed",
+            "error": record.error,
+        }
+        for key, value in (record.metrics or {}).items():
+            if key not in row and not isinstance(value, (dict, list)):
+                row[key] = value
+        rows.append(row)
+    return pd.DataFrame(rows, columns=None if rows else list(IDENTITY_COLUMNS))
