@@ -1,21 +1,20 @@
 """Incremental solvers behind the smoother: iSAM2, and GTSAM's fixed-lag smoother.
 
-Both take (new factors, new values, key times) per keyframe and answer estimates and
+Both take (new factors, new values, key times) per keyframe and answer estimates and joint
 marginal covariances. GTSAM errors during an update (an indeterminate system, a missing
-variable) become ``InputError`` naming the time and carrying GTSAM's whole message, never an
-opaque GTSAM traceback.
+variable) become ``InputError`` naming the time and carrying GTSAM's whole message
+(``smoothers.gtsam_errors``), never an opaque GTSAM traceback.
 
 Factorisation: Cholesky by default (measured at 200 landmarks in view: 15-17x faster per
 keyframe than QR, the same final graph error). Cholesky fails where the information spans
 many orders of magnitude (kitti-imu-gps with a keyframe every 10 IMU samples: its tiny bias
-walk); then the backend rebuilds itself with QR from every factor and value it holds, redoes
-what failed, stays on QR for the rest of the run and says so (``fallback``, recorded as an
-event by the smoother).
+walk); then the backend rebuilds itself with QR from every factor and value it held before
+the failed step, redoes that step, stays on QR for the rest of the run and says so
+(``fallback``, recorded as an event and a note by the smoother). A system that is
+indeterminate under QR too is an ``InputError``.
 
-Marginals are queried in batches (``joint``): one ``jointMarginalCovariance`` over the keys
-a step needs (a keyframe's states, the keys leaving the fixed-lag window, the whole map),
-never key by key in a loop (a single iSAM2 landmark marginal was measured at 0.4 s on a
-200-landmark map; the joint of all 170 landmarks at 0.9 s).
+Marginals are queried in batches (``joint``, ``smoothers.joint_marginals``): one
+``jointMarginalCovariance`` over the keys a step needs, never key by key in a loop.
 
 Fixed lag: ``gtsam.IncrementalFixedLagSmoother`` (the batch one offers no marginals). It
 marginalises the keys whose time is strictly earlier than ``latest time - lag``
@@ -25,12 +24,14 @@ marginalises the keys whose time is strictly earlier than ``latest time - lag``
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
-from datasets.errors import InputError
+from smoothers.gtsam_errors import explain, gtsam_message, is_indeterminate
+from smoothers.joint_marginals import JointMarginals
 
 BIAS_RELINEARIZE_THRESHOLD = 1.0
 """Relinearisation threshold of bias variables (per tangent component): the preintegrated
@@ -41,28 +42,6 @@ cost grows along the run (first 150 s, mean per fifth: 1.6, 6.9, 15.8, 17.7, 29.
 the pose/velocity threshold at 0.05, 0.1 or 0.2 and with ``relinearize_skip`` 10 alike, and
 stays flat (0.3 to 1.2 ms over 100 s) with relinearisation disabled: fluid relinearisation
 keeps reaching far back into the history on that GTSAM-only graph. Not solved here."""
-
-
-def gtsam_message(error: RuntimeError) -> str:
-    """GTSAM's whole message on one line."""
-    text = " ".join(line.strip() for line in str(error).strip().splitlines() if line.strip())
-    return text or type(error).__name__
-
-
-def _is_indeterminate(error: RuntimeError) -> bool:
-    text = str(error)
-    return "ndeterminant" in text or "ndeterminate" in text
-
-
-def _explain(error: RuntimeError, t: float, context: str) -> InputError:
-    message = gtsam_message(error)
-    where = f"{context} at t={t:.6f} s" if np.isfinite(t) else context
-    if _is_indeterminate(error):
-        return InputError(
-            f"{where}: the system is indeterminate (some state is not constrained: no prior, "
-            f"anchors, GPS or enough landmarks reach it) -- GTSAM: {message}"
-        )
-    return InputError(f"{where} failed inside GTSAM: {message}")
 
 
 def fetch_values(source, keys: list[int], dimension: int) -> gtsam.Values:
@@ -118,32 +97,35 @@ def isam2_params(
 
 @dataclass(frozen=True)
 class Fallback:
-    """The moment Cholesky failed and the backend went on with QR."""
+    """The moment Cholesky failed and the backend went on with QR.
+
+    Attributes:
+        t: the time of the step that failed [s] (NaN for a marginal query without one).
+        reason: GTSAM's whole message.
+    """
 
     t: float
     reason: str
 
 
-class JointMarginals:
-    """The joint marginal covariance of a set of keys from one batched query; also a
-    ``covariances.MarginalSource`` for any of those keys."""
-
-    def __init__(self, joint: gtsam.JointMarginal, keys: list[int]) -> None:
-        self._joint = joint
-        self.keys = list(keys)
-
-    def marginalCovariance(self, key: int) -> np.ndarray:  # noqa: N802 - GTSAM's name
-        return np.asarray(self._joint.at(key, key), dtype=float)
-
-    def matrix(self, keys: list[int] | None = None) -> np.ndarray:
-        """The joint covariance of ``keys`` (default: all), blocks in that order."""
-        keys = self.keys if keys is None else keys
-        rows = [np.hstack([self._joint.at(a, b) for b in keys]) for a in keys]
-        return np.vstack(rows)
+def _without(held: gtsam.Values, new: gtsam.Values) -> gtsam.Values:
+    """``held`` without the keys of ``new`` (a failed update may have inserted them)."""
+    kept = gtsam.Values(held)
+    for key in new.keys():
+        if kept.exists(key):
+            kept.erase(key)
+    return kept
 
 
 class _Incremental:
-    """What both backends share: the factorisation with its fallback, batched marginals."""
+    """What both backends share: the factorisation with its QR fallback, batched marginals.
+
+    A solver-specific subclass says how many factor slots it holds (``_held_slots``: GTSAM
+    appends new factors, so the slots held before an update are the first ones) and how to
+    build a fresh solver from them (``_rebuild``).
+    """
+
+    context = "update"
 
     def __init__(
         self,
@@ -158,7 +140,6 @@ class _Incremental:
         self.factorization = factorization
         self.fallback: Fallback | None = None
         self.gtsam_seconds = 0.0
-        self.context = "update"
 
     def params(self) -> gtsam.ISAM2Params:
         return isam2_params(
@@ -172,16 +153,21 @@ class _Incremental:
     def _isam(self) -> gtsam.ISAM2:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def _rebuild(self, graph, values, key_times) -> None:  # pragma: no cover - abstract
+    def _held_slots(self) -> int:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def _falls_back(self, error: RuntimeError, t: float) -> bool:
-        """Switch to QR when Cholesky failed on an indeterminate system (rebuild pending)."""
-        if self.factorization != "CHOLESKY" or not _is_indeterminate(error):
-            return False
+    def _rebuild(self, slots: int, new: gtsam.Values) -> None:  # pragma: no cover - abstract
+        """A fresh solver (``params()``) holding the factors of the first ``slots`` slots
+        at the held linearisation point without the keys of ``new``."""
+        raise NotImplementedError
+
+    def _fall_back(self, error: RuntimeError, t: float, context: str) -> None:
+        """Switch to QR when Cholesky failed on an indeterminate system; otherwise raise
+        the ``InputError`` for ``error``."""
+        if self.factorization != "CHOLESKY" or not is_indeterminate(error):
+            raise explain(error, t, context) from None
         self.factorization = "QR"
         self.fallback = Fallback(float(t), gtsam_message(error))
-        return True
 
     def update(
         self,
@@ -190,49 +176,42 @@ class _Incremental:
         key_times: dict[int, float],
         t: float,
     ) -> float:
-        """Add factors and values; returns the seconds spent inside GTSAM."""
+        """Add factors and values (``key_times``: key -> time [s]) at time ``t`` [s];
+        returns the seconds spent inside GTSAM."""
         start = time.perf_counter()
+        slots = self._held_slots()
         try:
             self._solver_update(graph, values, key_times)
         except RuntimeError as error:
-            if not self._falls_back(error, t):
-                raise _explain(error, t, self.context) from None
+            self._fall_back(error, t, self.context)
             try:
-                self._rebuild(graph, values, key_times)
+                self._rebuild(slots, values)
+                self._solver_update(graph, values, key_times)
             except RuntimeError as again:
-                raise _explain(again, t, f"{self.context} (QR after Cholesky failed)") from None
+                raise explain(again, t, f"{self.context} (QR after Cholesky failed)") from None
         elapsed = time.perf_counter() - start
         self.gtsam_seconds += elapsed
         return elapsed
 
-    def joint(self, keys: list[int], t: float = float("nan")) -> JointMarginals:
-        """One batched joint marginal query over ``keys``."""
+    def joint(self, keys: Sequence[int], t: float = float("nan")) -> JointMarginals:
+        """One batched joint marginal query over ``keys`` (at time ``t`` [s], for errors)."""
         try:
-            return JointMarginals(self._isam().jointMarginalCovariance(list(keys)), keys)
+            return JointMarginals.query(self._isam(), keys)
         except RuntimeError as error:
-            if not self._falls_back(error, t):
-                raise _explain(error, t, "joint marginal covariance") from None
+            self._fall_back(error, t, "joint marginal covariance")
         try:
-            self._rebuild(gtsam.NonlinearFactorGraph(), gtsam.Values(), {})
-            return JointMarginals(self._isam().jointMarginalCovariance(list(keys)), keys)
-        except RuntimeError as error:
-            raise _explain(
-                error, t, "joint marginal covariance (QR after Cholesky failed)"
+            self._rebuild(self._held_slots(), gtsam.Values())
+            return JointMarginals.query(self._isam(), keys)
+        except RuntimeError as again:
+            raise explain(
+                again, t, "joint marginal covariance (QR after Cholesky failed)"
             ) from None
-
-    @staticmethod
-    def _merged(held: gtsam.Values, new: gtsam.Values) -> gtsam.Values:
-        """``held`` without the keys of ``new``, then ``new``."""
-        merged = gtsam.Values(held)
-        for key in new.keys():
-            if merged.exists(key):
-                merged.erase(key)
-        merged.insert(new)
-        return merged
 
 
 class Isam2Backend(_Incremental):
     """iSAM2 over the whole history."""
+
+    context = "iSAM2 update"
 
     def __init__(
         self,
@@ -245,8 +224,8 @@ class Isam2Backend(_Incremental):
         super().__init__(dimension, relinearize_threshold, relinearize_skip, factorization)
         self.extra_iterations = extra_iterations
         self.isam = gtsam.ISAM2(self.params())
-        self.graph = gtsam.NonlinearFactorGraph()  # every factor added so far (for a rebuild)
-        self.context = "iSAM2 update"
+        # every factor added so far: what a QR rebuild starts from
+        self.graph = gtsam.NonlinearFactorGraph()
 
     def _solver_update(self, graph, values, key_times) -> None:
         self.isam.update(graph, values)
@@ -254,12 +233,13 @@ class Isam2Backend(_Incremental):
             self.isam.update()
         self.graph.push_back(graph)
 
-    def _rebuild(self, graph, values, key_times) -> None:
-        """A QR iSAM2 from every factor (held and new) at the held linearisation point."""
-        held = self.isam.getLinearizationPoint()
-        self.graph.push_back(graph)
+    def _held_slots(self) -> int:
+        return self.graph.size()
+
+    def _rebuild(self, slots: int, new: gtsam.Values) -> None:
+        held = _without(self.isam.getLinearizationPoint(), new)
         self.isam = gtsam.ISAM2(self.params())
-        self.isam.update(self.graph, self._merged(held, values))
+        self.isam.update(self.graph, held)
 
     def _isam(self) -> gtsam.ISAM2:
         return self.isam
@@ -281,6 +261,8 @@ class Isam2Backend(_Incremental):
 class FixedLagBackend(_Incremental):
     """``gtsam.IncrementalFixedLagSmoother`` with a lag in seconds."""
 
+    context = "fixed-lag update"
+
     def __init__(
         self,
         lag_s: float,
@@ -293,7 +275,6 @@ class FixedLagBackend(_Incremental):
         self.lag_s = lag_s
         self.smoother = gtsam.IncrementalFixedLagSmoother(lag_s, self.params())
         self.key_times: dict[int, float] = {}
-        self.context = "fixed-lag update"
 
     @staticmethod
     def _stamps(key_times: dict[int, float]) -> gtsam.FixedLagSmootherKeyTimestampMap:
@@ -312,21 +293,22 @@ class FixedLagBackend(_Incremental):
         for key in [key for key, stamp in self.key_times.items() if stamp < latest - self.lag_s]:
             del self.key_times[key]
 
-    def _rebuild(self, graph, values, key_times) -> None:
-        """A QR smoother from the window's factors (with its marginal factors), its
-        linearisation point and stamps, then the new factors."""
+    def _held_slots(self) -> int:
+        return self.smoother.getFactors().size()  # a reference: no copy of the window
+
+    def _rebuild(self, slots: int, new: gtsam.Values) -> None:
+        """The window's factors (with the marginal factors of what left it), linearisation
+        point and stamps, as they were before the failed step, in a fresh smoother. The
+        failed update had already appended its factors and values: they are left out."""
+        factors = self.smoother.getFactors()
         held_factors = gtsam.NonlinearFactorGraph()
-        for index in range(self.smoother.getFactors().size()):
-            factor = self.smoother.getFactors().at(index)
+        for index in range(min(slots, factors.size())):
+            factor = factors.at(index)
             if factor is not None:
                 held_factors.add(factor)
-        held = self.smoother.getLinearizationPoint()
-        held_times = dict(self.key_times)
+        held = _without(self.smoother.getLinearizationPoint(), new)
         self.smoother = gtsam.IncrementalFixedLagSmoother(self.lag_s, self.params())
-        self.smoother.update(held_factors, held, self._stamps(held_times))
-        if graph.size() or values.size():
-            self.smoother.update(graph, values, self._stamps(key_times))
-            self._track(key_times)
+        self.smoother.update(held_factors, held, self._stamps(self.key_times))
 
     def _isam(self) -> gtsam.ISAM2:
         return self.smoother.getISAM2()

@@ -4,8 +4,8 @@ Priors: the smoother gets the same start as the filter it is compared with. The 
 pose sigmas come from ``sequence.initial_state`` (position, rotation, velocity sigmas) and
 the bias sigmas from ``sequence.noise`` (``gyro_bias_sigma_rad_s``,
 ``accel_bias_sigma_m_s2``) -- the same fields the Aghili filter and dead reckoning read.
-Each can be overridden by a config value; when the source states no bias sigma the config
-defaults apply (documented in ``smoothers.modes.SmootherConfig``).
+Each can be overridden by a config value; when the source states no bias sigma the defaults
+of ``smoothers.motion_setup`` apply.
 
 Batch initialisation: Levenberg-Marquardt started from dead reckoning can stall in a wrong
 local minimum on long real runs (the issue reports it on Victoria Park). The batch mode
@@ -19,10 +19,16 @@ than LM from the incremental pass on a run where dead reckoning drifts.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import gtsam
+import numpy as np
 
 from datasets.errors import InputError
+
+if TYPE_CHECKING:  # the motion models import this module's priors
+    from smoothers.imu_graph import ImuMotion
+    from smoothers.planar_graph import PlanarMotion
 
 
 @dataclass(frozen=True)
@@ -63,3 +69,22 @@ def levenberg_marquardt(
     start_error = graph.error(initial)
     result = optimizer.optimize()
     return result, int(optimizer.iterations()), float(start_error), float(graph.error(result))
+
+
+def dead_reckoning_values(
+    start: gtsam.Values,
+    motion: ImuMotion | PlanarMotion,
+    keyframes: int,
+    first_sightings: dict[int, tuple[int, np.ndarray]],
+) -> gtsam.Values:
+    """The open-loop start (the trap, for comparison): motion increments of ``keyframes``
+    keyframes chained from the prior values ``start`` (with the anchors), each landmark
+    placed from its first sighting (landmark key -> (keyframe, body-frame point (d,) [m]))
+    as seen from that chain."""
+    values = gtsam.Values(start)
+    for k in range(1, keyframes):
+        values.insert(motion.dead_reckoning_step(k, values))
+    for key, (k, point) in first_sightings.items():
+        if not values.exists(key):
+            values.insert(key, np.asarray(motion.pose_of(values, k).transformFrom(point), float))
+    return values

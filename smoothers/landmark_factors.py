@@ -126,3 +126,20 @@ def check_measurement_covariance(covariance: np.ndarray, t: float, index: int) -
         raise InputError(
             f"landmark scan at t={t:.6f} s: covariance of point {index} is not positive definite"
         ) from None
+
+
+def point_factor(
+    dimension: int,
+    kind: str,
+    pose_key: int,
+    landmark_key: int,
+    point_body: np.ndarray,
+    covariance: np.ndarray,
+) -> gtsam.NonlinearFactor:
+    """The factor of one sighting: 2-D ``DeltaFactor``; 3-D by ``kind`` (the
+    ``landmark_factor`` option): ``bearing-range`` (native) or ``cartesian`` (exact)."""
+    if dimension == 2:
+        return body_point_factor_2d(pose_key, landmark_key, point_body, covariance)
+    if kind == "cartesian":
+        return cartesian_point_factor_3d(pose_key, landmark_key, point_body, covariance)
+    return body_point_factor_3d(pose_key, landmark_key, point_body, covariance)

@@ -1,184 +1,265 @@
-"""Landmark scans in the smoother: the map's variables, the prediction a keyframe's scans
-are associated and scored against, and their innovation statistics.
+"""Landmark scans in the smoother: each sighting decided, recorded, and turned into factors.
 
-A keyframe's motion (and GPS) factors are solved first, so the backend's estimate of the new
-pose *is* the prediction and the joint marginal of that pose and the landmarks is the
-predicted covariance. From it the ``KeyframePredictor`` gives the association policy
-(``filters.association``) the predicted measurements ``h_i = R^T (l_i - p)`` and ``H J H^T``
-(J the joint marginal, one batched backend query), and ``innovation`` the stacked NIS of
-the matched sightings ``nu^T (H J H^T + R)^-1 nu`` with its dof, and each landmark's own:
-the same statistics every filter records. A landmark created in this keyframe has no
-prediction and is not in the NIS.
-
-Jacobians on GTSAM's tangents (right perturbation): 3-D ``Pose3`` [omega, v]:
-``dh/domega = [h]x``, ``dh/dv = -I``; 2-D ``Pose2`` [x, y, theta]: ``dh/d(x, y) = -I``,
-``dh/dtheta = -J h`` with ``J = [[0, -1], [1, 0]]``; both ``dh/dl = R^T``.
+For every scan of a keyframe:
+1. the scan is checked (shapes, finite points, positive-definite covariances: bad input is
+   an ``InputError``) and its noise scaled by ``measurement_noise_scale``;
+2. every sighting is decided by the shared policy (``smoothers.scan_association``) against
+   the keyframe's prediction: the keyframe's motion (and GPS) factors solved first, so the
+   prediction is the solved pose with the joint marginal of that pose and the observed
+   landmarks (``smoothers.keyframe_prediction``);
+3. the scan's NIS is recorded as every filter records it (``EstimateRecorder.innovation``):
+   the stacked NIS of its matched sightings against that prediction *before* the scan's own
+   factors are added, ``nu^T (H J H^T + R)^-1 nu`` with dof = rows, and each landmark's own
+   (d dof), with ids or geometric association alike. ``R`` is the noise the scan states
+   (scaled), even where the id gate inflated the noise a sighting is used with. A
+   landmark created by this scan (or an earlier scan of the same keyframe) has no
+   prediction: it is not in the NIS;
+4. matched sightings add a body-frame point factor to their landmark, new ones create a
+   landmark (a variable placed from the sighting, an anchor's prior again if it is one);
+5. every sighting is recorded with its typed decision and, when not used, the reason
+   (``EstimateRecorder.association``), so none is dropped silently.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-import gtsam
 import numpy as np
-from gtsam.symbol_shorthand import L
 
-from filters.association import innovation_statistics
-from smoothers.backends import JointMarginals
+from datasets.errors import InputError
+from datasets.estimate import AssociationDecision, EstimateRecorder
+from datasets.measurements import LandmarkScan
+from filters.association import AssociationPolicy, ScanAssociation
+from smoothers.config import SmootherConfig
+from smoothers.keyframe_prediction import KeyframePredictor
+from smoothers.landmark_book import LandmarkBook, MapLandmark
+from smoothers.landmark_factors import (
+    MIN_RANGE_M,
+    check_measurement_covariance,
+    landmark_prior,
+    point_factor,
+)
+from smoothers.pending_update import PendingUpdate
+from smoothers.scan_association import associate_scan
 
-PLANAR_J = np.array([[0.0, -1.0], [1.0, 0.0]])
-
-
-@dataclass
-class MapLandmark:
-    """One map landmark: its current variable key and bookkeeping.
-
-    Attributes:
-        map_id: the estimator's id (the scan id with ids).
-        key: the GTSAM key of its current variable (a re-observed landmark whose variable
-            was marginalised gets a new one).
-        anchor_position: a known landmark's surveyed position, or None.
-        observations: sightings used so far. last_t: time of the latest [s].
-    """
-
-    map_id: int
-    key: int
-    anchor_position: np.ndarray | None = None
-    observations: int = 0
-    last_t: float = 0.0
+AT_SENSOR_ORIGIN = "at the sensor origin"
+"""Reason of a 3-D sighting nearer than ``MIN_RANGE_M``: it has no bearing, so it can
+neither place a new landmark nor make a bearing-range factor."""
 
 
-class LandmarkBook:
-    """The map: map id -> ``MapLandmark``, with fresh GTSAM keys ``l0, l1, ...``."""
-
-    def __init__(self) -> None:
-        self.landmarks: dict[int, MapLandmark] = {}
-        self.next_map_id = 0
-        self._next_key_index = 0
-
-    def variable(self, map_id: int, t: float) -> MapLandmark:
-        """The landmark ``map_id`` with a new variable key (created when unknown)."""
-        key = L(self._next_key_index)
-        self._next_key_index += 1
-        landmark = self.landmarks.get(map_id)
-        if landmark is None:
-            landmark = MapLandmark(map_id=map_id, key=key)
-            self.landmarks[map_id] = landmark
-            self.next_map_id = max(self.next_map_id, map_id + 1)
-        else:
-            landmark.key = key
-        landmark.last_t = float(t)
-        return landmark
-
-    def new_map_id(self) -> int:
-        map_id = self.next_map_id
-        self.next_map_id += 1
-        return map_id
-
-    def sorted(self) -> list[MapLandmark]:
-        return sorted(self.landmarks.values(), key=lambda landmark: landmark.map_id)
-
-
-def predicted_measurements(pose, positions: np.ndarray, dimension: int) -> np.ndarray:
-    """``h_i = R^T (l_i - p)`` for world positions (m, d) seen from a GTSAM pose, (m, d)."""
-    rotation = pose.rotation().matrix()
-    return (np.asarray(positions, dtype=float) - np.asarray(pose.translation())) @ rotation
-
-
-class KeyframePredictor:
-    """The association ``Predictor`` of a keyframe (module docstring).
+class LandmarkScans:
+    """The map's landmarks and what each scan does to them (module docstring).
 
     Args:
-        pose: the keyframe's pose estimate (``gtsam.Pose3`` or ``Pose2``). pose_key: its key.
-        candidates: the landmarks that may be seen, with ``positions`` (m, d) their estimates.
-        joint: ``keys -> JointMarginals``, the backend's batched query.
+        config: the smoother's options. dimension: d, 2 or 3.
+        policy: the shared association policy. recorder: where decisions and NIS go.
+        backend: the incremental solver (``contains``, ``values``, ``joint``).
+        pending: the next backend update, which the scans' factors and variables join.
+
+    Attributes:
+        book: the map (ids, current variables).
+        first_sightings: landmark key -> (keyframe, sighting (d,) [m]) that created it
+            (the batch mode's dead-reckoning start places landmarks from it).
     """
 
     def __init__(
         self,
-        pose,
-        pose_key: int,
-        candidates: list[MapLandmark],
-        positions: np.ndarray,
-        joint,
+        config: SmootherConfig,
         dimension: int,
+        policy: AssociationPolicy,
+        recorder: EstimateRecorder,
+        backend,
+        pending: PendingUpdate,
     ) -> None:
-        self.pose = pose
-        self.pose_key = pose_key
-        self.candidates = candidates
-        self.positions = np.asarray(positions, dtype=float).reshape(len(candidates), dimension)
+        self.config = config
         self.dimension = dimension
-        self.rotation_t = pose.rotation().matrix().T
-        self.predicted = predicted_measurements(pose, self.positions, dimension)
-        self._query = joint
-        self._cached: JointMarginals | None = None
+        self.policy = policy
+        self.recorder = recorder
+        self.backend = backend
+        self.pending = pending
+        self.book = LandmarkBook()
+        self.first_sightings: dict[int, tuple[int, np.ndarray]] = {}
 
-    def subset(self, indices: np.ndarray) -> KeyframePredictor:
-        """The same prediction restricted to the candidates ``indices`` (no new query)."""
-        chosen = [self.candidates[int(i)] for i in indices]
+    # ------------------------------------------------------------------ the map
+    def add_anchor(self, map_id: int, position: np.ndarray, t: float) -> None:
+        """A known landmark at its surveyed ``position`` (d,) [m] with its tight prior."""
+        landmark = self._new_variable(map_id, position, t)
+        landmark.anchor_position = np.asarray(position, dtype=float)
+        self.pending.add(landmark_prior(landmark.key, position, self.config.anchor_sigma_m))
+
+    def _new_variable(self, map_id: int, position: np.ndarray, t: float) -> MapLandmark:
+        """A new variable for landmark ``map_id`` at ``position`` (created when unknown)."""
+        landmark = self.book.variable(map_id, t)
+        self.pending.insert_point(landmark.key, position, t)
+        return landmark
+
+    def solved(self) -> list[MapLandmark]:
+        """The landmarks whose current variables the backend holds, by map id."""
+        return [lm for lm in self.book.sorted() if self.backend.contains(lm.key)]
+
+    def alive_count(self) -> int:
+        """Landmarks with a variable in the backend or the pending update."""
+        return sum(
+            1
+            for lm in self.book.landmarks.values()
+            if self.pending.holds(lm.key) or self.backend.contains(lm.key)
+        )
+
+    # ------------------------------------------------------------------ scans
+    def needs_prediction(self, scan: LandmarkScan) -> bool:
+        """Whether the scan is scored or associated against a prediction (NIS, the id gate,
+        JCBB) and the map has a landmark it could see. A landmark whose variable is still
+        pending counts (the anchors before the first update): solved first, it is a
+        candidate, where unsolved it would be mapped a second time from its sighting."""
+        uses = (
+            self.config.innovation_nis
+            or self.config.id_gate_probability is not None
+            or self.policy.mode(scan.ids, scan.t) != "ids"
+        )
+        return uses and any(
+            self.backend.contains(lm.key) or self.pending.holds(lm.key)
+            for lm in self.book.landmarks.values()
+        )
+
+    def check(self, scan: LandmarkScan) -> tuple[np.ndarray, np.ndarray]:
+        """(points (k, d) [m], covariances (k, d, d) [m^2] scaled by the noise option);
+        ``InputError`` on malformed input."""
+        points = np.asarray(scan.points, dtype=float)
+        covariances = np.asarray(scan.covariances, dtype=float)
+        d = self.dimension
+        if points.ndim != 2 or points.shape[1] != d or covariances.shape != (points.shape[0], d, d):
+            raise InputError(
+                f"landmark scan at t={scan.t:.6f} s: points {points.shape} / covariances "
+                f"{covariances.shape} do not match dimension {d}"
+            )
+        if not np.all(np.isfinite(points)):
+            raise InputError(f"landmark scan at t={scan.t:.6f} s contains non-finite points")
+        for index, covariance in enumerate(covariances):
+            check_measurement_covariance(covariance, scan.t, index)
+        return points, covariances * self.config.measurement_noise_scale
+
+    def add(self, scan: LandmarkScan, k: int, pose_key: int, pose) -> None:
+        """Decide, score, record and add the factors of ``scan`` at keyframe ``k``.
+
+        Args:
+            pose_key: keyframe ``k``'s pose key. pose: its pose (``gtsam.Pose3``/``Pose2``):
+                the solved one when ``needs_prediction`` said so (the prediction), else the
+                motion model's (only places new landmarks then).
+        """
+        points, covariances = self.check(scan)
+        decided = associate_scan(
+            self.policy,
+            scan,
+            points,
+            covariances,
+            self.solved(),
+            lambda candidates: self._predict(candidates, pose_key, pose),
+            self.needs_prediction(scan),
+        )
+        association = decided.association
+        if association.search is not None and association.search.truncated:
+            self.recorder.event(scan.t, "jcbb_truncated", nodes=association.search.nodes)
+        if decided.predictor is not None and self.config.innovation_nis:
+            self._record_nis(scan.t, association, decided.predictor, points, covariances)
+        for index, decision in enumerate(association.decisions):
+            point = points[index]
+            reason = association.reasons[index]
+            landmark: MapLandmark | None = None
+            if decision == AssociationDecision.MATCHED:
+                landmark = decided.candidates[int(association.candidates[index])]
+            elif decision == AssociationDecision.NEW:
+                landmark = self._unsolved_with_id(scan, index, association)
+                if landmark is not None:
+                    decision = AssociationDecision.MATCHED
+                elif self.dimension == 3 and np.linalg.norm(point) < MIN_RANGE_M:
+                    decision, reason = AssociationDecision.REJECTED, AT_SENSOR_ORIGIN
+                else:
+                    landmark = self._map_new(k, scan, index, pose, point, association)
+            if landmark is None:
+                self.recorder.association(scan.t, index, -1, decision, reason)
+                continue
+            self.pending.add(
+                point_factor(
+                    self.dimension,
+                    self.config.landmark_factor,
+                    pose_key,
+                    landmark.key,
+                    point,
+                    association.noise[index],
+                )
+            )
+            landmark.observations += 1
+            landmark.last_t = scan.t
+            self.pending.touch(landmark.key, scan.t)
+            self.recorder.association(
+                scan.t, index, landmark.map_id, decision, reason, association.inflation[index]
+            )
+        self.recorder.landmark_count(scan.t, self.alive_count())
+
+    def _predict(self, candidates: list[MapLandmark], pose_key: int, pose) -> KeyframePredictor:
+        """The keyframe's prediction of ``candidates`` (their solved positions)."""
+        keys = [landmark.key for landmark in candidates]
+        values = self.backend.values(keys)
+        read = values.atPoint3 if self.dimension == 3 else values.atPoint2
+        positions = np.array([read(key) for key in keys], dtype=float)
         return KeyframePredictor(
-            self.pose,
-            self.pose_key,
-            chosen,
-            self.positions[np.asarray(indices, dtype=int)],
-            self._query,
+            pose,
+            pose_key,
+            candidates,
+            positions.reshape(len(keys), self.dimension),
+            self.backend.joint,
             self.dimension,
         )
 
-    def _marginals(self, indices: np.ndarray) -> JointMarginals:
-        """The joint marginal of the pose and ``indices``' landmarks, from the cached query
-        when it covers them (one backend query per keyframe in the usual call order)."""
-        keys = [self.pose_key] + [self.candidates[int(i)].key for i in indices]
-        if self._cached is None or not set(keys) <= set(self._cached.keys):
-            self._cached = self._query(keys)
-        return self._cached
+    def _record_nis(
+        self,
+        t: float,
+        association: ScanAssociation,
+        predictor: KeyframePredictor,
+        points: np.ndarray,
+        covariances: np.ndarray,
+    ) -> None:
+        """The stacked and per-landmark NIS of the matched sightings (module docstring)."""
+        matched = association.rows(AssociationDecision.MATCHED)
+        if not len(matched):
+            return
+        innovation = predictor.innovation(
+            association.candidates[matched], points[matched], covariances[matched]
+        )
+        if innovation is None:
+            self.recorder.event(t, "scan_nis_skipped", reason="S not positive definite")
+            return
+        self.recorder.innovation(
+            t, innovation.nis, innovation.dof, innovation.group_nis, innovation.group_dof
+        )
 
-    def _jacobian(self, indices: np.ndarray) -> np.ndarray:
-        """Stacked ``H`` (n d, pose dof + n d) on [pose, landmark_1, ..., landmark_n]."""
-        d = self.dimension
-        pose_dof = 6 if d == 3 else 3
-        count = len(indices)
-        jacobian = np.zeros((count * d, pose_dof + count * d))
-        for row, index in enumerate(indices):
-            h = self.predicted[int(index)]
-            rows = slice(row * d, (row + 1) * d)
-            if d == 3:
-                skew = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
-                jacobian[rows, :pose_dof] = np.hstack([skew, -np.eye(3)])
-            else:
-                jacobian[rows, :pose_dof] = np.hstack([-np.eye(2), (-PLANAR_J @ h)[:, None]])
-            jacobian[rows, pose_dof + row * d : pose_dof + (row + 1) * d] = self.rotation_t
-        return jacobian
+    def _unsolved_with_id(
+        self, scan: LandmarkScan, index: int, association: ScanAssociation
+    ) -> MapLandmark | None:
+        """With ids: the landmark of this sighting's id when an earlier scan of the same
+        keyframe gave it its (not yet solved) variable: the same landmark, not a new one."""
+        if association.mode != "ids":
+            return None
+        landmark = self.book.landmarks.get(int(scan.ids[index]))
+        if landmark is None or not self.pending.holds(landmark.key):
+            return None
+        return landmark
 
-    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        indices = np.asarray(indices, dtype=int)
-        marginals = self._marginals(indices)
-        keys = [self.pose_key] + [self.candidates[int(i)].key for i in indices]
-        jacobian = self._jacobian(indices)
-        covariance = jacobian @ marginals.matrix(keys) @ jacobian.T
-        return self.predicted[indices], 0.5 * (covariance + covariance.T)
-
-    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        predicted, joint = self.joint(indices)
-        d, count = self.dimension, len(predicted)
-        blocks = joint.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :]
-        return predicted, blocks
-
-    def innovation(self, indices: np.ndarray, measured: np.ndarray, noise: np.ndarray):
-        """``filters.association.innovation_statistics`` of the sightings ``measured``
-        (n, d) with noise blocks (n, d, d) paired with the candidates ``indices`` (n,)."""
-        predicted, joint = self.joint(indices)
-        d, count = self.dimension, len(indices)
-        stacked = joint.copy()
-        for row in range(count):
-            stacked[row * d : (row + 1) * d, row * d : (row + 1) * d] += noise[row]
-        groups = [np.arange(row * d, (row + 1) * d) for row in range(count)]
-        return innovation_statistics((np.asarray(measured) - predicted).ravel(), stacked, groups)
-
-
-def pose_and_positions(values: gtsam.Values, pose_key: int, keys: list[int], dimension: int):
-    """(pose, positions (m, d)) of ``pose_key`` and the landmark ``keys`` in ``values``."""
-    pose = values.atPose3(pose_key) if dimension == 3 else values.atPose2(pose_key)
-    read = values.atPoint3 if dimension == 3 else values.atPoint2
-    positions = np.array([read(key) for key in keys], dtype=float).reshape(len(keys), dimension)
-    return pose, positions
+    def _map_new(
+        self,
+        k: int,
+        scan: LandmarkScan,
+        index: int,
+        pose,
+        point: np.ndarray,
+        association: ScanAssociation,
+    ) -> MapLandmark:
+        """A new landmark (or a new variable of a known one that left the window) placed
+        from a sighting; an anchor re-created keeps its prior."""
+        map_id = int(scan.ids[index]) if association.mode == "ids" else self.book.new_map_id()
+        world = np.asarray(pose.transformFrom(point), dtype=float)
+        landmark = self._new_variable(map_id, world, scan.t)
+        self.first_sightings[landmark.key] = (k, np.asarray(point, dtype=float))
+        if landmark.anchor_position is not None:
+            self.pending.add(
+                landmark_prior(landmark.key, landmark.anchor_position, self.config.anchor_sigma_m)
+            )
+        return landmark

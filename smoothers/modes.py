@@ -2,50 +2,46 @@
 
 - ``smoother-isam2`` (``SmootherIsam2``): iSAM2, one update per keyframe. Causal history:
   the estimate right after each keyframe's update, with iSAM2 marginal covariances of
-  its pose, velocity and biases. Smoothed history: the final iSAM2 estimate of every
-  keyframe with marginals, and the final map with its joint covariance.
+  its pose, velocity and biases, and map snapshots every ``snapshot_interval_s``.
+  Smoothed history: the final iSAM2 estimate of every keyframe with marginals, and the
+  final map with its joint covariance.
 - ``smoother-batch`` (``SmootherBatch``): the reference. The graph is built (and the
   association decided) by an incremental iSAM2 pass, whose final solution is the initial
   guess of Levenberg-Marquardt over the whole graph (``smoothers.initialization``: why not
   dead reckoning). A batch solution exists only at the end: the Estimate has *no* causal
   history (nothing the batch knew at a time before the end), only the smoothed one, with
-  covariances from ``gtsam.Marginals``. Its NIS and association records are those of the
-  incremental pass that built the graph.
+  covariances from ``gtsam.Marginals`` (Cholesky, QR when it fails). Its NIS and
+  association records are those of the incremental pass that built the graph.
 - ``smoother-fixed-lag`` (``SmootherFixedLag``): ``gtsam.IncrementalFixedLagSmoother`` with a
-  lag in seconds. Causal history as for iSAM2. Smoothed history: each keyframe's estimate
-  and marginals at the moment it leaves the window (the most it is ever smoothed), the
-  rest at the end; the map of the window at the end with its joint covariance. A landmark
+  lag in seconds. Causal history as for iSAM2 (snapshots of the window's map). Smoothed
+  history: each keyframe's estimate and marginals at the moment it leaves the window (the
+  most it is ever smoothed), the rest at the end (``smoothers.lag_window``); the map of the
+  window at the end with its joint covariance, plus the landmarks that left it. A landmark
   re-observed after it was marginalised starts a new variable (its old information lives
   on in the marginal factor of the window; anchors get their prior again).
 
-Marginals are always queried in batches (``backends.JointMarginals``): a keyframe's states
+Marginals are always queried in batches (``smoothers.joint_marginals``): a keyframe's states
 together, the keys leaving the window together, the map together.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from typing import ClassVar
 
 import gtsam
-import numpy as np
 
 from datasets.errors import InputError
-from datasets.estimate import Estimate, EstimateRecorder
+from datasets.estimate import Estimate
 from datasets.sequence import Sequence
-from datasets.state import Frame, LandmarkMap, StateHistory
-from smoothers.backends import FixedLagBackend, JointMarginals, gtsam_message
+from smoothers.backends import FixedLagBackend
 from smoothers.config import BatchConfig, FixedLagConfig, Isam2Config
-from smoothers.initialization import levenberg_marquardt
+from smoothers.gtsam_errors import explain, gtsam_message
+from smoothers.initialization import dead_reckoning_values, levenberg_marquardt
+from smoothers.joint_marginals import JointMarginals
 from smoothers.keyframe_smoother import KeyframeSmoother
-
-
-def _with_map(history: StateHistory, final_map: LandmarkMap) -> StateHistory:
-    """The history with the final map as its landmark snapshot (what the smoothed map is)."""
-    return replace(
-        history, landmarks=(*history.landmarks, final_map) if len(final_map) else history.landmarks
-    )
+from smoothers.lag_window import WindowExports
+from smoothers.smoothed_output import with_map
 
 
 class SmootherIsam2(KeyframeSmoother):
@@ -62,7 +58,8 @@ class SmootherIsam2(KeyframeSmoother):
         self._flush()
         values = self.backend.estimate()
         final_map = self.landmark_map(values, self.backend.joint)
-        smoothed = _with_map(self.smoothed_history(values, self.backend.joint), final_map)
+        smoothed = with_map(self.smoothed_history(values, self.backend.joint), final_map)
+        self.recorder.final_snapshot(final_map)  # iSAM2's last estimate is causal too
         self._report_fallback()
         self.recorder.extra("gtsam_update_seconds_total", self.backend.gtsam_seconds)
         return self.recorder.build(landmarks=final_map, smoothed=smoothed, notes=tuple(self.notes))
@@ -94,7 +91,12 @@ class SmootherBatch(KeyframeSmoother):
         guess = (
             incremental
             if self.config.initial_guess == "incremental"
-            else self._dead_reckoning_start()
+            else dead_reckoning_values(
+                self.start_values,
+                self.motion,
+                len(self.keyframe_t),
+                self.scans.first_sightings,
+            )
         )
         start = time.perf_counter()
         try:
@@ -103,12 +105,15 @@ class SmootherBatch(KeyframeSmoother):
             )
             marginals = self._marginals(result)
         except RuntimeError as error:
-            raise InputError(
-                f"batch optimisation of {self.sequence_name} failed inside GTSAM: {gtsam_message(error)}"
+            raise explain(
+                error, float("nan"), f"batch optimisation of {self.sequence_name}"
             ) from None
 
-        def joint(keys: list[int]) -> JointMarginals:
-            return JointMarginals(marginals.jointMarginalCovariance(list(keys)), keys)
+        def joint(keys) -> JointMarginals:
+            try:
+                return JointMarginals.query(marginals, keys)
+            except RuntimeError as error:
+                raise explain(error, float("nan"), "batch joint marginal covariance") from None
 
         self.recorder.extra("batch_seconds", time.perf_counter() - start)
         self.recorder.extra("batch_iterations", iterations)
@@ -116,7 +121,7 @@ class SmootherBatch(KeyframeSmoother):
         self.recorder.extra("batch_error_final", final_error)
         self.recorder.extra("incremental_error", self.full_graph.error(incremental))
         final_map = self.landmark_map(result, joint)
-        smoothed = _with_map(self.smoothed_history(result, joint), final_map)
+        smoothed = with_map(self.smoothed_history(result, joint), final_map)
         self._report_fallback()
         notes = tuple(self.notes) + (
             f"batch LM from the {self.config.initial_guess} solution: graph error {start_error:.6g} -> {final_error:.6g} in {iterations} iterations",
@@ -126,20 +131,6 @@ class SmootherBatch(KeyframeSmoother):
         self.final_values = result
         return self.recorder.build(landmarks=final_map, smoothed=smoothed, notes=notes)
 
-    def _dead_reckoning_start(self) -> gtsam.Values:
-        """Open-loop start: motion increments chained from the prior, landmarks placed from
-        their first sighting seen from that chain, anchors at their known positions."""
-        values = gtsam.Values(self.start_values)
-        for k in range(1, len(self.keyframe_t)):
-            values.insert(self.motion.dead_reckoning_step(k, values))
-        for key, (k, point) in self.first_sightings.items():
-            if not values.exists(key):
-                values.insert(
-                    key,
-                    np.asarray(self.motion.pose_of(values, k).transformFrom(point), dtype=float),
-                )
-        return values
-
 
 class SmootherFixedLag(KeyframeSmoother):
     """GTSAM's incremental fixed-lag smoother over a window of ``lag_s`` seconds."""
@@ -148,9 +139,8 @@ class SmootherFixedLag(KeyframeSmoother):
     mode: ClassVar[str] = "fixed-lag"
 
     def __init__(self, config: FixedLagConfig, sequence: Sequence) -> None:
-        self.departed_landmarks: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self.keyframe_exports: dict[int, EstimateRecorder] = {}
         super().__init__(config, sequence)
+        self.exports = WindowExports(self.motion, self.dimension)
         self.causal_covariances = config.causal_covariances
 
     def _make_backend(self) -> FixedLagBackend:
@@ -163,38 +153,11 @@ class SmootherFixedLag(KeyframeSmoother):
         )
 
     def _before_update(self, t_new: float) -> None:
-        """Export what leaves the window with this update: the keyframes' states and the
-        landmarks' positions with their marginals, from one batched query."""
-        leaving = set(self.backend.leaving(t_new))
-        if not leaving:
-            return
-        keyframes = [
-            k
-            for k in range(len(self.keyframe_t))
-            if k not in self.keyframe_exports and self.motion.pose_key(k) in leaving
-        ]
-        landmarks = [lm for lm in self.landmarks.values() if lm.key in leaving]
-        keys = [key for k in keyframes for key in self.motion.keys(k)] + [
-            lm.key for lm in landmarks
-        ]
-        keys = [key for key in keys if self.backend.contains(key)]
-        if not keys:
-            return
-        values = self.backend.values(keys)
-        marginals = self.backend.joint(keys, t_new)
-        for k in keyframes:
-            if not values.exists(self.motion.pose_key(k)):
-                continue
-            recorder = EstimateRecorder(self.dimension)
-            self.motion.record(recorder, self.keyframe_t[k], values, k, marginals)
-            self.keyframe_exports[k] = recorder
-        read = values.atPoint3 if self.dimension == 3 else values.atPoint2
-        for landmark in landmarks:
-            if values.exists(landmark.key):
-                self.departed_landmarks[landmark.map_id] = (
-                    np.asarray(read(landmark.key), dtype=float),
-                    marginals.marginalCovariance(landmark.key),
-                )
+        """Export what leaves the window with this update (``smoothers.lag_window``)."""
+        leaving = self.backend.leaving(t_new)
+        if leaving:
+            landmarks = list(self.landmarks.values())
+            self.exports.export(self.backend, leaving, self.keyframe_t, landmarks, t_new)
 
     def _update(self, t: float) -> None:
         latest = self.keyframe_t[-1]
@@ -210,62 +173,15 @@ class SmootherFixedLag(KeyframeSmoother):
         in_window = [
             k
             for k in range(len(self.keyframe_t))
-            if k not in self.keyframe_exports and values.exists(self.motion.pose_key(k))
+            if k not in self.exports.keyframes and values.exists(self.motion.pose_key(k))
         ]
         remaining = self.smoothed_history(values, self.backend.joint, in_window)
-        recorder = EstimateRecorder(self.dimension)
-        for k in range(len(self.keyframe_t)):
-            history = self.keyframe_exports[k].history() if k in self.keyframe_exports else None
-            if history is not None:
-                _append_history(recorder, history, 0)
-            elif k in in_window:
-                _append_history(recorder, remaining, in_window.index(k))
         window_map = self.landmark_map(values, self.backend.joint)
-        smoothed = _with_map(recorder.history(), window_map)
+        smoothed = with_map(self.exports.history(remaining), window_map)
+        self.recorder.final_snapshot(window_map)  # the window's, with its joint covariance
         self._report_fallback()
-        landmark_map = _merge_maps(window_map, self.departed_landmarks, self.dimension)
         return self.recorder.build(
-            landmarks=landmark_map, smoothed=smoothed, notes=tuple(self.notes)
+            landmarks=self.exports.merged_map(window_map),
+            smoothed=smoothed,
+            notes=tuple(self.notes),
         )
-
-
-def _append_history(recorder: EstimateRecorder, history: StateHistory, index: int) -> None:
-    """Copy step ``index`` of a history into ``recorder``."""
-    pose = history.pose
-    cov = None if pose.covariances is None else pose.covariances[index]
-    recorder.pose(pose.t[index], pose.positions[index], pose.rotations[index], cov)
-    for name, block in history.blocks.items():
-        recorder.block(
-            name,
-            block.t[index],
-            block.values[index],
-            None if block.covariances is None else block.covariances[index],
-            block.frame,
-        )
-
-
-def _merge_maps(
-    current: LandmarkMap, departed: dict[int, tuple[np.ndarray, np.ndarray]], dimension: int
-) -> LandmarkMap:
-    """Current window landmarks, plus those last seen only before leaving the window (their
-    marginals only: the joint covariance of the whole map is not kept by a fixed lag)."""
-    entries = {
-        int(i): (p, c)
-        for i, p, c in zip(
-            current.ids,
-            current.positions,
-            current.covariances if current.covariances is not None else [],
-            strict=False,
-        )
-    }
-    for map_id, entry in departed.items():
-        entries.setdefault(map_id, entry)
-    if not entries:
-        return LandmarkMap.empty(dimension)
-    ids = np.array(sorted(entries), dtype=int)
-    return LandmarkMap(
-        ids,
-        np.array([entries[i][0] for i in ids]),
-        np.array([entries[i][1] for i in ids]),
-        Frame.WORLD,
-    )
