@@ -2,7 +2,8 @@
 
 For every scan of a keyframe:
 1. the scan is checked (shapes, finite points, positive-definite covariances: bad input is
-   an ``InputError``) and its noise scaled by ``measurement_noise_scale``;
+   an ``InputError``) and its noise scaled by ``measurement_noise_scale``; a 3-D sighting
+   at the sensor origin has no bearing and is rejected (``AT_SENSOR_ORIGIN``);
 2. every sighting is decided by the shared policy (``smoothers.scan_association``) against
    the keyframe's prediction: the keyframe's motion (and GPS) factors solved first, so the
    prediction is the solved pose with the joint marginal of that pose and the observed
@@ -41,8 +42,9 @@ from smoothers.pending_update import PendingUpdate
 from smoothers.scan_association import associate_scan
 
 AT_SENSOR_ORIGIN = "at the sensor origin"
-"""Reason of a 3-D sighting nearer than ``MIN_RANGE_M``: it has no bearing, so it can
-neither place a new landmark nor make a bearing-range factor."""
+"""Reason of a 3-D sighting nearer than ``MIN_RANGE_M``: it has no bearing, so it is
+rejected before association (it could neither place a landmark nor make a bearing-range
+factor, and its direction would be noise in the NIS)."""
 
 
 class LandmarkScans:
@@ -145,16 +147,20 @@ class LandmarkScans:
                 motion model's (only places new landmarks then).
         """
         points, covariances = self.check(scan)
+        usable = np.arange(len(points))
+        if self.dimension == 3:  # a 3-D point at the sensor has no bearing
+            usable = np.flatnonzero(np.linalg.norm(points, axis=1) >= MIN_RANGE_M)
         decided = associate_scan(
             self.policy,
-            scan,
-            points,
-            covariances,
+            None if scan.ids is None else np.asarray(scan.ids)[usable],
+            scan.t,
+            points[usable],
+            covariances[usable],
             self.solved(),
             lambda candidates: self._predict(candidates, pose_key, pose),
             self.needs_prediction(scan),
         )
-        association = decided.association
+        association = decided.association.embedded(usable, len(points), AT_SENSOR_ORIGIN)
         if association.search is not None and association.search.truncated:
             self.recorder.event(scan.t, "jcbb_truncated", nodes=association.search.nodes)
         if decided.predictor is not None and self.config.innovation_nis:
@@ -169,8 +175,6 @@ class LandmarkScans:
                 landmark = self._unsolved_with_id(scan, index, association)
                 if landmark is not None:
                     decision = AssociationDecision.MATCHED
-                elif self.dimension == 3 and np.linalg.norm(point) < MIN_RANGE_M:
-                    decision, reason = AssociationDecision.REJECTED, AT_SENSOR_ORIGIN
                 else:
                     landmark = self._map_new(k, scan, index, pose, point, association)
             if landmark is None:

@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from datasets.measurements import LandmarkScan
 from filters.association import AssociationPolicy, ScanAssociation
 from smoothers.keyframe_prediction import KeyframePredictor
 from smoothers.landmark_book import MapLandmark
@@ -50,28 +49,31 @@ class ScanDecisions:
 
 def associate_scan(
     policy: AssociationPolicy,
-    scan: LandmarkScan,
+    ids: np.ndarray | None,
+    t: float,
     points: np.ndarray,
     covariances: np.ndarray,
     solved: list[MapLandmark],
     predict: Callable[[list[MapLandmark]], KeyframePredictor],
     predict_ids: bool,
 ) -> ScanDecisions:
-    """Decide every sighting of ``scan``.
+    """Decide every sighting of a scan at time ``t`` [s].
 
     Args:
+        ids: the sightings' source ids (k,), or None.
         points: the sightings (k, d) [m]. covariances: their noise (k, d, d) [m^2].
         solved: the map landmarks whose variables the backend holds, by map id.
         predict: the keyframe's prediction of given landmarks.
         predict_ids: with ids, whether to predict (the id gate or the NIS uses it).
     """
-    mode = policy.mode(scan.ids, scan.t)
+    mode = policy.mode(ids, t)
     if mode == "ids":
-        wanted = {int(i) for i in scan.ids}
+        assert ids is not None
+        wanted = {int(i) for i in ids}
         candidates = [landmark for landmark in solved if landmark.map_id in wanted]
         predictor = predict(candidates) if candidates and predict_ids else None
-        ids = np.array([landmark.map_id for landmark in candidates], dtype=int)
-        association = policy.by_ids(scan.ids, points, covariances, ids, predictor)
+        candidate_ids = np.array([landmark.map_id for landmark in candidates], dtype=int)
+        association = policy.by_ids(ids, points, covariances, candidate_ids, predictor)
         return ScanDecisions(association, candidates, predictor)
     candidates, predictor = [], None
     if solved:
