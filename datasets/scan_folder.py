@@ -345,7 +345,9 @@ def scans_sequence(
         ),
         metadata={
             "source": str(folder),
-            "reference_source": f"TUM file {settings.ground_truth}" if settings.ground_truth else None,
+            "reference_source": f"TUM file {settings.ground_truth}"
+            if settings.ground_truth
+            else None,
             "files": len(files),
             "time_order_problems": int(order_problem.size),
             "options": settings.model_dump(mode="json"),

@@ -13,7 +13,9 @@ What the stream contains (time-ordered; at equal times motion first, then the sc
   ``covariance`` is the per-sample white-noise covariance ``diag(sigma_v^2, sigma_omega^2)``
   (the integrated increment over ``dt`` then has covariance ``dt^2 * covariance``);
 - ``LandmarkScan`` of the sightings sharing one time: body-frame points
-  ``p = r (cos b, sin b)`` with the first-order covariance ``J diag(sr^2, sb^2) J^T``.
+  body-frame points by ``datasets.range_bearing`` (the unbiased converted measurement and
+  its covariance by default; ``landmark_conversion=first-order``: ``p = r (cos b, sin b)``
+  with ``J diag(sr^2, sb^2) J^T``).
 
 Quirks handled (all counted in ``Sequence.metadata['counts']``):
 - *Rounded time column.* This copy is resampled on a 0.02 s grid but prints 5 significant
@@ -50,6 +52,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -57,6 +60,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, LandmarkScan, Measurement, Odometry, Sensor
 from datasets.options import parse_options
+from datasets.range_bearing import convert
 from datasets.rotations import rot2_batch, wrap_angle
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import BlockName, Frame, GroundTruth, LandmarkMap, StateBlock, StateHistory
@@ -76,6 +80,11 @@ class UtiasOptions(BaseModel):
     ids: bool = Field(
         True,
         description="attach the barcodes to the scans (false: withheld, association by the estimator)",
+    )
+    landmark_conversion: Literal["unbiased", "first-order"] = Field(
+        "unbiased",
+        description="range/bearing sightings to body points: the unbiased converted measurement with "
+        "its covariance (Mo et al. 1998, Duan et al. 2004) or the plain conversion with J diag J^T",
     )
     bearing_sigma_rad: float = Field(
         0.03, gt=0, description="bearing noise std [rad] (measured on this data: about 0.03)"
@@ -235,34 +244,6 @@ def repair_heading_glitches(
                 replaced += gap - 1
             last_good = i
     return np.asarray(wrap_angle(repaired)), replaced
-
-
-def range_bearing_to_points(
-    ranges_m: np.ndarray,
-    bearings_rad: np.ndarray,
-    range_sigma_m: np.ndarray,
-    bearing_sigma_rad: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Body-frame points and their first-order covariances from range/bearing.
-
-    ``p = r (cos b, sin b)``, ``J = [[cos b, -r sin b], [sin b, r cos b]]``,
-    ``cov = J diag(sigma_r^2, sigma_b^2) J^T``.
-
-    Args:
-        ranges_m, bearings_rad, range_sigma_m: shape (k,).
-        bearing_sigma_rad: scalar.
-
-    Returns:
-        points (k, 2) [m], covariances (k, 2, 2) [m^2].
-    """
-    c, s = np.cos(bearings_rad), np.sin(bearings_rad)
-    points = np.stack([ranges_m * c, ranges_m * s], axis=-1)
-    jacobian = np.stack([np.stack([c, -ranges_m * s], -1), np.stack([s, ranges_m * c], -1)], -2)
-    noise = np.zeros((len(ranges_m), 2, 2))
-    noise[:, 0, 0] = range_sigma_m**2
-    noise[:, 1, 1] = bearing_sigma_rad**2
-    covariances = jacobian @ noise @ np.swapaxes(jacobian, -1, -2)
-    return points, 0.5 * (covariances + np.swapaxes(covariances, -1, -2))
 
 
 def parse_argument(argument: str | None) -> tuple[Path, int]:
@@ -511,8 +492,8 @@ def _build_scans(
         ranges = np.array([group[i][0] for i in ids])
         bearings = np.array([group[i][1] for i in ids])
         sigma_r = np.maximum(config.range_sigma_floor_m, config.range_sigma_fraction * ranges)
-        points, covariances = range_bearing_to_points(
-            ranges, bearings, sigma_r, config.bearing_sigma_rad
+        points, covariances = convert(
+            ranges, bearings, sigma_r, config.bearing_sigma_rad, config.landmark_conversion
         )
         scans.append(LandmarkScan(t=key, points=points, covariances=covariances, ids=ids))
         scan_ids.append((key, ids))

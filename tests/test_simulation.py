@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from datasets import BlockName, GyroSample, ImuSample, InputError, LandmarkScan, Sensor
+from datasets.range_bearing import first_order_covariance as range_bearing_covariance
 from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
 from datasets.simulation.figures import sequence_figures
 from datasets.simulation.floor_plan import ring_corridor_building
 from datasets.simulation.folder_format import read_sequence_folder, write_sequence_folder
 from datasets.simulation.imu import kitti_imu_sigmas
-from datasets.simulation.landmarks import range_bearing_covariance
 from datasets.simulation.scenarios import describe_scenarios, load_scenario
 
 SCENARIOS = ["aghili-rover", "guerreiro-loop", "circle", "static"]

@@ -13,13 +13,13 @@ import pytest
 
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, LandmarkScan, Odometry
+from datasets.range_bearing import convert
 from datasets.rotations import rot2, wrap_angle
 from datasets.utias import (
     UtiasOptions,
     grid_times,
     load,
     load_mrclam,
-    range_bearing_to_points,
     repair_heading_glitches,
 )
 
@@ -61,7 +61,7 @@ def test_heading_glitch_runs_are_replaced_by_the_short_way_round() -> None:
 def test_range_bearing_covariance_matches_monte_carlo() -> None:
     rng = np.random.default_rng(0)
     r, b, sr, sb = 3.0, 0.6, 0.05, 0.01
-    points, cov = range_bearing_to_points(np.array([r]), np.array([b]), np.array([sr]), sb)
+    points, cov = convert(np.array([r]), np.array([b]), np.array([sr]), sb, "first-order")
     np.testing.assert_allclose(points[0], [r * np.cos(b), r * np.sin(b)])
     samples = rng.normal([r, b], [sr, sb], size=(200_000, 2))
     cloud = np.stack(
@@ -210,7 +210,7 @@ def test_unknown_robot_duplicate_and_out_of_range_sightings_are_dropped_and_coun
         "5.00 72 1.9 0.12",  # after the last odometry row
     ]
     folder = write_folder(tmp_path / "d", grid_odometry(50), sightings)
-    sequence = load_mrclam(folder, 1, UtiasOptions(ids=True))
+    sequence = load_mrclam(folder, 1, UtiasOptions(ids=True, landmark_conversion="first-order"))
     counts = sequence.metadata["counts"]
     assert counts["duplicate_sightings"] == 1
     assert counts["unknown_barcodes"] == 1

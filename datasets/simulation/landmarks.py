@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from datasets.range_bearing import convert, first_order_covariance
+
 MIN_RANGE_M = 0.5
 """Closer landmarks are not reported (a sensor's blind zone; avoids degenerate bearings)."""
 
@@ -111,18 +113,18 @@ def isotropic_observations(
 
 @dataclass(frozen=True)
 class RangeBearingNoise:
-    """Laser range/bearing noise (Guerreiro et al. 2013, section V).
+    """A planar laser's range/bearing noise (independent, Gaussian).
 
     Attributes:
-        bearing_sigma_rad: sigma_alpha (paper: 3.75 deg).
-        near_range_sigma_m: sigma_rho1 for ranges <= switch_range_m (paper: 0.15 m).
-        far_range_sigma_m: sigma_rho2 beyond (paper: 0.25 m).
-        switch_range_m: 10 m in the paper.
+        bearing_sigma_rad: sigma_alpha.
+        near_range_sigma_m: sigma_rho for ranges <= switch_range_m.
+        far_range_sigma_m: sigma_rho beyond.
+        switch_range_m: where the range sigma changes.
     """
 
-    bearing_sigma_rad: float = float(np.deg2rad(3.75))
-    near_range_sigma_m: float = 0.15
-    far_range_sigma_m: float = 0.25
+    bearing_sigma_rad: float
+    near_range_sigma_m: float
+    far_range_sigma_m: float
     switch_range_m: float = 10.0
 
     def range_sigma(self, ranges_m: np.ndarray) -> np.ndarray:
@@ -132,30 +134,15 @@ class RangeBearingNoise:
         )
 
 
-def range_bearing_covariance(
-    ranges_m: np.ndarray,
-    bearings_rad: np.ndarray,
-    range_sigma_m: np.ndarray,
-    bearing_sigma_rad: float,
-) -> np.ndarray:
-    """First-order covariance of ``p = rho (cos a, sin a)``: ``J diag(s_rho^2, s_a^2) J^T``.
+PAPER_LASER = RangeBearingNoise(float(np.deg2rad(3.75)), 0.15, 0.25)
+"""Guerreiro et al. (2013), section V: the *filter's* tuning for its Hokuyo (sigma_alpha =
+3.75 deg, sigma_rho = 0.15 m up to 10 m, 0.25 m beyond): conservative, not the laser's own
+noise."""
 
-    Guerreiro et al. (2013), section V, Theta_p (unnumbered) prints
-    ``sigma_rho^2 M_alpha + sigma_alpha^2 dM_alpha/dalpha`` with
-    ``M_alpha = R_alpha diag(1, 0) R_alpha^T``. That matrix is not positive semidefinite
-    (dM/dalpha is traceless and indefinite) and lacks the rho^2 factor of the bearing
-    term; the standard first-order form used here is
-    ``sigma_rho^2 M_alpha + rho^2 sigma_alpha^2 R_alpha diag(0, 1) R_alpha^T``.
-    Shapes: (k,) inputs -> (k, 2, 2).
-    """
-    cos, sin = np.cos(bearings_rad), np.sin(bearings_rad)
-    jacobian = np.stack(
-        [np.stack([cos, -ranges_m * sin], axis=-1), np.stack([sin, ranges_m * cos], axis=-1)],
-        axis=-2,
-    )  # (k, 2, 2): columns d/drho, d/dalpha
-    variances = np.stack([range_sigma_m**2, np.full_like(ranges_m, bearing_sigma_rad**2)], axis=-1)
-    covariances = np.einsum("kij,kj,klj->kil", jacobian, variances, jacobian)
-    return 0.5 * (covariances + np.swapaxes(covariances, 1, 2))  # exactly symmetric
+UTM_30LX = RangeBearingNoise(float(np.deg2rad(0.25)), 0.03, 0.05)
+"""A Hokuyo UTM-30LX-class laser's own noise: the manufacturer's accuracy, +-30 mm from 0.1
+to 10 m and +-50 mm from 10 to 30 m, taken as one sigma, and its 0.25 deg angular
+resolution as the bearing sigma of a corner (Hokuyo UTM-30LX specification sheet)."""
 
 
 def range_bearing_observations(
@@ -164,25 +151,59 @@ def range_bearing_observations(
     noise_scale: float,
     stated_scale: float,
     rng: np.random.Generator,
+    drawn_in: str = "polar",
+    conversion: str = "unbiased",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Planar laser observations: noise drawn in range and bearing, converted to body-frame
-    positions; covariance evaluated at the measured range and bearing (as the paper says
-    the linearisation is performed at the measured values). (k, 2) -> ((k, 2), (k, 2, 2))."""
+    """Planar laser observations of body-frame points (k, 2): ((k, 2) points, (k, 2, 2)
+    stated covariances).
+
+    ``drawn_in="polar"``: noise drawn in range and bearing (the laser), converted to body
+    coordinates by ``conversion`` (``datasets.range_bearing``: the unbiased converted
+    measurement, or the plain one with its first-order covariance), the covariance
+    evaluated at the measured range and bearing (the paper linearises at the measured
+    values). ``drawn_in="cartesian"``: noise drawn from N(0, C) with C the first-order
+    covariance at the true range and bearing, stated as C (exactly the model a Cartesian
+    estimator assumes: for calibration).
+    """
     ranges = np.linalg.norm(body_points, axis=1)
     bearings = np.arctan2(body_points[:, 1], body_points[:, 0])
+    if drawn_in == "cartesian":
+        covariances = first_order_covariance(
+            ranges,
+            bearings,
+            stated_scale * noise.range_sigma(ranges),
+            stated_scale * noise.bearing_sigma_rad,
+        )
+        drawn = first_order_covariance(
+            ranges,
+            bearings,
+            noise_scale * noise.range_sigma(ranges),
+            noise_scale * noise.bearing_sigma_rad,
+        )
+        factors = np.linalg.cholesky(drawn + 1e-18 * np.eye(2))
+        return body_points + np.einsum(
+            "kij,kj->ki", factors, rng.standard_normal(body_points.shape)
+        ), covariances
     range_sigma = noise.range_sigma(ranges)
     measured_ranges = ranges + noise_scale * range_sigma * rng.standard_normal(len(ranges))
     measured_bearings = bearings + noise_scale * noise.bearing_sigma_rad * rng.standard_normal(
         len(ranges)
     )
-    points = measured_ranges[:, None] * np.column_stack(
-        [np.cos(measured_bearings), np.sin(measured_bearings)]
+    # The conversion debiases with the noise actually drawn (noise-free data stay exact);
+    # the covariance is the stated one (equal to the drawn one unless noise_scale=0).
+    points, _ = convert(
+        measured_ranges,
+        measured_bearings,
+        noise_scale * noise.range_sigma(measured_ranges),
+        noise_scale * noise.bearing_sigma_rad,
+        conversion,
     )
-    covariances = range_bearing_covariance(
+    _, covariances = convert(
         measured_ranges,
         measured_bearings,
         stated_scale * noise.range_sigma(measured_ranges),
         stated_scale * noise.bearing_sigma_rad,
+        conversion,
     )
     return points, covariances
 

@@ -36,7 +36,8 @@ from datasets.simulation.imu import (
     simulate_planar_gyro,
 )
 from datasets.simulation.landmarks import (
-    RangeBearingNoise,
+    PAPER_LASER,
+    UTM_30LX,
     ScanSeries,
     anchor_order,
     field_of_view_mask,
@@ -139,6 +140,21 @@ class StaticOptions(_SpatialOptions):
 
 class GuerreiroLoopOptions(_CommonOptions):
     range_m: float = Field(30.0, gt=0, description="laser range [m] (Hokuyo UTM-30LX: 30 m)")
+    laser: Literal["utm-30lx", "paper"] = Field(
+        "utm-30lx",
+        description="the laser noise drawn and stated: 'utm-30lx' the sensor's own (3/5 cm, 0.25 deg); "
+        "'paper' the paper's filter tuning (0.15/0.25 m, 3.75 deg) drawn as if it were the sensor's",
+    )
+    landmark_noise: Literal["polar", "cartesian"] = Field(
+        "polar",
+        description="'polar': noise drawn in range and bearing (the laser); 'cartesian': drawn from the "
+        "stated first-order covariance (exactly a Cartesian estimator's model, for calibration)",
+    )
+    landmark_conversion: Literal["unbiased", "first-order"] = Field(
+        "unbiased",
+        description="polar sightings to body points: the unbiased converted measurement with its "
+        "covariance (Mo et al. 1998, Duan et al. 2004) or the plain conversion with J diag J^T",
+    )
     fov_deg: float = Field(
         270.0, gt=0, le=360, description="laser field of view [deg] (UTM-30LX: 270)"
     )
@@ -436,10 +452,13 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     average and passes its start again, so early landmarks are seen again (loop closable).
     Landmarks are the wall corners (building corners and door niches). A laser (range 30 m,
     270 deg field of view, 10 Hz by default) sees a corner only with line of sight (walls
-    occlude). Noise as the paper: sigma_alpha = 3.75 deg, sigma_rho = 0.15 m up to 10 m,
-    0.25 m beyond, drawn in range/bearing; covariance first-order J diag J^T. A rate gyro at
-    the laser rate with bias (walk 5.7e-5 deg/s/sqrt(s) as the paper's sigma_br) and MEMS
-    white noise. No odometry. With ``directions=true`` each observed corner also carries the
+    occlude). Laser noise (``laser``): by default a Hokuyo UTM-30LX-class sensor's own
+    (``landmarks.UTM_30LX``: 3 cm up to 10 m, 5 cm beyond, 0.25 deg); ``laser=paper`` draws
+    the paper's filter tuning (sigma_alpha = 3.75 deg, sigma_rho = 0.15 m up to 10 m, 0.25 m
+    beyond), which is a conservative tuning, not the laser. Drawn in range and bearing
+    (``landmark_noise``) and converted by the unbiased converted measurement
+    (``landmark_conversion``, ``datasets.range_bearing``). A rate gyro at the laser rate
+    with bias (walk 5.7e-5 deg/s/sqrt(s) as the paper's sigma_br) and MEMS white noise. No odometry. With ``directions=true`` each observed corner also carries the
     body-frame unit directions of its two walls (the paper's direction landmarks), each
     rotated by N(0, direction_sigma_deg^2) noise.
     """
@@ -472,7 +491,7 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
         kinematics, options.gyro_rate_hz, nominal.scaled(drawn), generators["inertial"]
     )
 
-    laser = RangeBearingNoise()
+    laser = UTM_30LX if options.laser == "utm-30lx" else PAPER_LASER
     scan_times = sample_times(duration, options.landmark_rate_hz)
     scan_kinematics = motion.kinematics(scan_times)
     rng = generators["landmarks"]
@@ -487,7 +506,15 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
         if index == 0:
             visible_at_start = mask
         visible = np.flatnonzero(mask)
-        measured, covariance = range_bearing_observations(body[visible], laser, drawn, stated, rng)
+        measured, covariance = range_bearing_observations(
+            body[visible],
+            laser,
+            drawn,
+            stated,
+            rng,
+            options.landmark_noise,
+            options.landmark_conversion,
+        )
         points.append(measured)
         covariances.append(covariance)
         ids.append(visible.astype(int))
@@ -522,8 +549,17 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
         seed,
         options,
         path_length_m=float(motion.path.length_m),
-        laser_bearing_sigma_deg=3.75,
-        laser_range_sigma_m={"up_to_10_m": 0.15, "beyond_10_m": 0.25},
+        laser=options.laser,
+        laser_bearing_sigma_deg=float(np.rad2deg(laser.bearing_sigma_rad)),
+        laser_range_sigma_m={
+            "up_to_10_m": laser.near_range_sigma_m,
+            "beyond_10_m": laser.far_range_sigma_m,
+        },
+        landmark_measurement_model=(
+            f"planar laser, noise drawn in range/bearing, {options.landmark_conversion} conversion"
+            if options.landmark_noise == "polar"
+            else "Cartesian noise drawn from the stated first-order covariance"
+        ),
     )
     return build_sequence(
         "sim:guerreiro-loop",
