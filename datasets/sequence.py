@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from datasets.measurements import Measurement, Sensor
+from datasets.odometry_noise import OdometryNoiseModel
 from datasets.state import GroundTruth, LandmarkMap
 
 
@@ -28,6 +29,9 @@ class NoiseSpec:
         accel_bias_sigma_m_s2: std of the initial accelerometer bias (prior around zero).
         landmark_sigma_m: nominal landmark position noise std (scans carry their own).
         gps_sigma_m: GPS position noise std.
+        odometry: the planar odometry noise model the odometry covariances were built from
+            (``datasets.odometry_noise``; it also gives the lateral variance that a velocity
+            sample's (v, omega) covariance cannot carry), or None.
         rate_hz: nominal sample rate of each sensor.
     """
 
@@ -39,6 +43,7 @@ class NoiseSpec:
     accel_bias_sigma_m_s2: float | None = None
     landmark_sigma_m: float | None = None
     gps_sigma_m: float | None = None
+    odometry: OdometryNoiseModel | None = None
     rate_hz: dict[str, float] = field(default_factory=dict)
 
 

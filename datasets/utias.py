@@ -59,6 +59,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, LandmarkScan, Measurement, Odometry, Sensor
+from datasets.odometry_noise import OdometryNoiseModel, mean_heading_density, read_model_file
 from datasets.options import parse_options
 from datasets.range_bearing import convert
 from datasets.rotations import rot2_batch, wrap_angle
@@ -95,15 +96,24 @@ class UtiasOptions(BaseModel):
     range_sigma_floor_m: float = Field(
         0.05, gt=0, description="lower bound of the range noise std [m]"
     )
+    odometry_noise: str = Field(
+        "fit",
+        description="odometry noise model: 'fit' (variances growing with time, distance and turn, "
+        "fitted at load against this robot's Vicon truth, datasets.odometry_noise), 'white' (the "
+        "per-sample white noise below), or a YAML file from `workbench calibrate-noise`",
+    )
+    odometry_noise_window_s: float = Field(
+        5.0, gt=0, description="'fit': window over which odometry is compared with the truth [s]"
+    )
     odometry_sigma_v_m_s: float = Field(
         0.15,
         gt=0,
-        description="per-sample white-noise std of the forward velocity [m/s] (fits the 20 s drift vs Vicon of robot 1)",
+        description="odometry_noise=white: per-sample white-noise std of the forward velocity [m/s] (fits the 20 s drift vs Vicon of robot 1)",
     )
     odometry_sigma_omega_rad_s: float = Field(
         0.3,
         gt=0,
-        description="per-sample white-noise std of the angular velocity [rad/s] (fits the 1-20 s heading drift vs Vicon of robot 1)",
+        description="odometry_noise=white: per-sample white-noise std of the angular velocity [rad/s] (fits the 1-20 s heading drift vs Vicon of robot 1)",
     )
     grid_step_s: float = Field(0.02, gt=0, description="row spacing of the resampled files [s]")
     drop_stale_repeats: bool = Field(
@@ -326,6 +336,7 @@ def load_mrclam(
         meas_t = sightings.values[:, 0].copy()
         origin = min(odo_t[0], truth_t[0])
     odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
+    odometry_model = _odometry_noise_model(config, odo_t, odo_values, truth_t, truth_values, name)
     if config.duration_s is not None:
         keep = odo_t <= config.duration_s
         odo_t, odo_values = odo_t[keep], odo_values[keep]
@@ -351,8 +362,18 @@ def load_mrclam(
         truth_t, truth_values[:, :2], heading, subject_of, surveyed, config, scan_ids
     )
 
+    speeds = odo_values[:, 0] * config.odometry_speed_scale
+    if odometry_model is None:
+        gyro_density = config.odometry_sigma_omega_rad_s * np.sqrt(step)
+    else:
+        gyro_density = mean_heading_density(
+            odometry_model,
+            np.column_stack([speeds * step, np.zeros(len(speeds)), odo_values[:, 1] * step]),
+            np.full(len(speeds), step),
+        )
     noise = NoiseSpec(
-        gyro_noise_density=config.odometry_sigma_omega_rad_s * np.sqrt(step),
+        gyro_noise_density=gyro_density,
+        odometry=odometry_model,
         rate_hz={"odometry": 1.0 / step, "gyro": 1.0 / step},
     )
     start_velocity = ground_truth.history.block(BlockName.VELOCITY).values[0]
@@ -365,18 +386,25 @@ def load_mrclam(
         rotation_sigma_rad=1e-3,
         velocity_sigma_m_s=0.05,
     )
-    odo_cov = np.diag([config.odometry_sigma_v_m_s**2, config.odometry_sigma_omega_rad_s**2])
+    white_cov = np.diag([config.odometry_sigma_v_m_s**2, config.odometry_sigma_omega_rad_s**2])
     ids_visible = config.ids
 
     def stream() -> Iterator[Measurement]:
         scan_index = 0
-        for t, (speed, rate) in zip(odo_t + config.odometry_delay_s, odo_values):
-            speed = speed * config.odometry_speed_scale
+        previous_t: float | None = None
+        for t, speed, rate in zip(odo_t + config.odometry_delay_s, speeds, odo_values[:, 1]):
             while scan_index < len(scans) and scans[scan_index].t < t:
                 yield _with_ids(scans[scan_index], ids_visible)
                 scan_index += 1
+            dt = step if previous_t is None else max(float(t) - previous_t, 1e-9)
+            previous_t = float(t)
+            covariance = (
+                white_cov
+                if odometry_model is None
+                else odometry_model.velocity_covariance(speed, rate, dt)
+            )
             yield GyroSample(t=float(t), rate=np.array([rate]))
-            yield Odometry(t=float(t), covariance=odo_cov, velocity=np.array([speed, rate]))
+            yield Odometry(t=float(t), covariance=covariance, velocity=np.array([speed, rate]))
             while scan_index < len(scans) and scans[scan_index].t <= t:
                 yield _with_ids(scans[scan_index], ids_visible)
                 scan_index += 1
@@ -397,6 +425,7 @@ def load_mrclam(
         else "as in the file",
         "options": config.model_dump(),
         "scans": len(scans),
+        "odometry_noise": None if odometry_model is None else odometry_model.as_dict(),
     }
     return Sequence(
         name=name,
@@ -408,6 +437,58 @@ def load_mrclam(
         initial_state=initial_state,
         metadata=metadata,
     )
+
+
+def _odometry_noise_model(
+    config: UtiasOptions,
+    odo_t: np.ndarray,
+    odo_values: np.ndarray,
+    truth_t: np.ndarray,
+    truth_values: np.ndarray,
+    name: str,
+) -> OdometryNoiseModel | None:
+    """The odometry noise model ``config.odometry_noise`` asks for: ``fit`` against this
+    robot's own Vicon truth over the whole recording (``datasets.odometry_calibration``,
+    windows of ``odometry_noise_window_s``; before ``duration_s`` trims it, so that a short
+    run gets the same model as the full one), ``white`` (None: the per-sample white noise
+    of ``odometry_sigma_v_m_s``, ``odometry_sigma_omega_rad_s``), or a YAML file written by
+    ``workbench calibrate-noise``."""
+    choice = config.odometry_noise
+    if choice == "white":
+        return None
+    if choice != "fit":
+        return read_model_file(Path(choice))
+    from datasets.odometry_calibration import Increments, build_windows, fit_odometry_noise
+
+    dt = np.diff(odo_t)
+    speeds = odo_values[1:, 0] * config.odometry_speed_scale
+    increments = Increments(
+        odo_t[1:] + config.odometry_delay_s,
+        dt,
+        np.column_stack([speeds * dt, np.zeros(len(dt)), odo_values[1:, 1] * dt]),
+    )
+    heading, _ = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
+    try:
+        windows = build_windows(
+            increments,
+            truth_t,
+            truth_values[:, :2],
+            heading,
+            config.odometry_noise_window_s,
+            # nearest truth sample (grid data: the same times; printed logs: two clocks)
+            tolerance_s=0.5 * float(np.median(np.diff(truth_t))) + 1e-9,
+        )
+    except InputError as error:
+        raise InputError(
+            f"{name}: odometry_noise=fit: {error} (use --data odometry_noise=white, or a "
+            "model file from `workbench calibrate-noise`)"
+        ) from None
+    fit = fit_odometry_noise(windows, "")
+    source = (
+        f"fitted at load against {name}'s Vicon truth ({fit.windows} windows of "
+        f"{config.odometry_noise_window_s:g} s; {len(fit.excluded)} outlier windows excluded)"
+    )
+    return OdometryNoiseModel(fit.model.rates, source)
 
 
 def _with_ids(scan: LandmarkScan, visible: bool) -> LandmarkScan:

@@ -210,7 +210,9 @@ def test_unknown_robot_duplicate_and_out_of_range_sightings_are_dropped_and_coun
         "5.00 72 1.9 0.12",  # after the last odometry row
     ]
     folder = write_folder(tmp_path / "d", grid_odometry(50), sightings)
-    sequence = load_mrclam(folder, 1, UtiasOptions(ids=True, landmark_conversion="first-order"))
+    sequence = load_mrclam(
+        folder, 1, UtiasOptions(ids=True, landmark_conversion="first-order", odometry_noise="white")
+    )
     counts = sequence.metadata["counts"]
     assert counts["duplicate_sightings"] == 1
     assert counts["unknown_barcodes"] == 1
@@ -234,7 +236,7 @@ def test_irregular_printed_times_gap_and_duplicate_rows(tmp_path: Path) -> None:
     )
     odometry = [f"{t:.3f} 0.2 0.1" for t in times]
     folder = write_folder(tmp_path / "d", odometry, [f"{base + 0.1:.3f} 72 2.0 0.1"])
-    sequence = load_mrclam(folder, 1, UtiasOptions())
+    sequence = load_mrclam(folder, 1, UtiasOptions(odometry_noise="white"))
     assert sequence.metadata["time_source"] == "printed"
     assert sequence.metadata["counts"]["odometry_time_not_increasing"] == 1
     gaps = sequence.metadata["odometry_gaps"]

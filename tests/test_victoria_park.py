@@ -10,7 +10,14 @@ import pytest
 
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, LandmarkScan, Odometry
-from datasets.victoria_park import VictoriaParkOptions, default_path, load, load_file, read_file
+from datasets.victoria_park import (
+    VICTORIA_PARK_ODOMETRY,
+    VictoriaParkOptions,
+    default_path,
+    load,
+    load_file,
+    read_file,
+)
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +57,14 @@ def test_stream_order_nominal_time_and_gyro_rate(full) -> None:
         assert g.t == o.t and g.rate.shape == (1,)
         assert g.rate[0] == pytest.approx(o.relative_pose[2] / step)
         assert o.dt == step and o.velocity is None
-    np.testing.assert_allclose(odometry[0].covariance, np.diag([1e-4, 4e-6, 4e-6]))
+    # default: the calibrated model (the file's covariance is optimistic); 'file' keeps it
+    np.testing.assert_allclose(
+        odometry[0].covariance,
+        VICTORIA_PARK_ODOMETRY.increment_covariance(odometry[0].relative_pose, step),
+    )
+    as_in_file = load(None, 0, {"odometry_noise": "file", "max_steps": "5"})
+    first = next(m for m in as_in_file.measurements() if isinstance(m, Odometry))
+    np.testing.assert_allclose(first.covariance, np.diag([1e-4, 4e-6, 4e-6]))
     # the first sighting (pose 4, landmark 5 at (11.5387, -3.2007)) comes right after the 4th odometry step
     first_scan = next(i for i, m in enumerate(stream) if isinstance(m, LandmarkScan))
     scan = stream[first_scan]

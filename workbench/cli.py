@@ -36,6 +36,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "workbench.commands.observability",
     "workbench.commands.bench_speed",
     "workbench.commands.report",
+    "workbench.commands.calibrate_noise",
 )
 
 SetOption = Annotated[

@@ -43,6 +43,7 @@ from pydantic import BaseModel
 from datasets.errors import InputError
 from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Odometry, Sensor
+from datasets.odometry_noise import OdometryNoiseModel
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, so3_exp, wrap_angle
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
@@ -80,6 +81,7 @@ class EkfSlam:
             d, has_velocity=gyro_model, has_gyro_bias=gyro_model and config.estimate_gyro_bias
         )
         noise = sequence.noise
+        self.sequence_noise = noise
         self.gyro_noise = GyroNoise(
             gyro_density=_first(config.gyro_noise_density, noise.gyro_noise_density, 1e-3),
             bias_walk=_first(config.gyro_bias_walk, noise.gyro_bias_walk, 1e-5),
@@ -163,7 +165,9 @@ class EkfSlam:
             self.gaps += 1
             self.recorder.event(measurement.t, "motion_gap", gap_s=dt, input=self.input.value)
         if isinstance(measurement, Odometry):
-            increment, increment_cov = _odometry_increment(measurement, dt)
+            increment, increment_cov = _odometry_increment(
+                measurement, dt, self.sequence_noise.odometry
+            )
             new, transition, process = predict_odometry_2d(
                 self.vehicle,
                 self.layout,
@@ -453,8 +457,13 @@ def _first(*values: float | None) -> float:
     return float(next(value for value in values if value is not None))
 
 
-def _odometry_increment(odometry: Odometry, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Planar increment (dx, dy, dtheta) and its covariance from relative-pose or (v, omega) odometry."""
+def _odometry_increment(
+    odometry: Odometry, dt: float, model: OdometryNoiseModel | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Planar increment (dx, dy, dtheta) and its covariance from relative-pose or (v, omega)
+    odometry. A velocity sample's (v, omega) covariance has no lateral axis: when the
+    sequence states its odometry noise model, the increment's covariance is the model's
+    (with the lateral term), else the sample's covariance mapped through ``dt``."""
     covariance = np.asarray(odometry.covariance, float)
     if odometry.relative_pose is not None:
         increment = np.asarray(odometry.relative_pose, float)
@@ -466,8 +475,11 @@ def _odometry_increment(odometry: Odometry, dt: float) -> tuple[np.ndarray, np.n
         speed, rate = np.asarray(odometry.velocity, float)
         step = max(dt, 0.0)
         increment = np.array([speed * step, 0.0, rate * step])
-        jacobian = np.array([[step, 0.0], [0.0, 0.0], [0.0, step]])
-        covariance = jacobian @ covariance @ jacobian.T
+        if model is not None and step > 0.0:
+            covariance = model.increment_covariance(increment, step)
+        else:
+            jacobian = np.array([[step, 0.0], [0.0, 0.0], [0.0, step]])
+            covariance = jacobian @ covariance @ jacobian.T
     else:
         raise InputError(f"odometry at t={odometry.t:.6f} s has neither relative_pose nor velocity")
     if not np.all(np.isfinite(increment)) or not np.all(np.isfinite(covariance)):
