@@ -266,3 +266,27 @@ def test_closed_form_rotation_flow_matches_van_loan_expm(d: int, scale: float) -
     exponential, integral = rotation_flow(generator, dt)
     np.testing.assert_allclose(exponential, reference[:d, :d], atol=1e-14)
     np.testing.assert_allclose(integral, reference[:d, d:], atol=1e-14)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_tiled_in_place_prediction_over_many_tiles_is_exact_and_exactly_symmetric(d: int) -> None:
+    """150 landmarks span three tiles of ``TILE_BLOCKS`` (the last one partial): the tiled
+    product equals the dense ``expm(A Ts) P expm(A Ts)^T + Q`` and is symmetric to the bit."""
+    from filters.sensor_based.dynamics import TILE_BLOCKS
+
+    count = 150
+    assert count > 2 * TILE_BLOCKS and count % TILE_BLOCKS
+    rng = np.random.default_rng(7)
+    x, cov, is_position = _random_state(rng, d, count)
+    r = 1 if d == 2 else 3
+    measured = rng.normal(size=(count, d))
+    rate = rng.normal(size=r)
+    dt = 0.05
+    x_next, cov_next = propagate(
+        x, cov, is_position, measured, np.ones(count, dtype=bool), rate, dt, NOISE, d, "exact"
+    )
+    f = expm(_dense_ltv_matrix(x.size, measured, is_position, rate, d) * dt)
+    q = process_covariance(x[d + r :].reshape(count, d), is_position, NOISE, dt, d)
+    np.testing.assert_allclose(x_next, f @ x, atol=1e-12)
+    np.testing.assert_allclose(cov_next, f @ cov @ f.T + q, atol=1e-11)
+    assert np.array_equal(cov_next, cov_next.T)
