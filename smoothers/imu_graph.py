@@ -32,6 +32,7 @@ from smoothers.covariances import (
     pose_covariance,
     vector_covariance,
 )
+from smoothers.held_input import held_interval
 from smoothers.initialization import InitialPriors
 
 
@@ -125,17 +126,10 @@ class KeyframeImuIntegrator:
         self.samples_since_keyframe = 0
 
     def _integrate_until(self, t: float) -> None:
-        if self.held_t is None:
-            return
-        dt = t - self.cursor
+        dt = held_interval(self.cursor, self.held_t, t, self.max_gap_s, "IMU")
         if dt <= 0.0:
             return
-        if t - self.held_t > self.max_gap_s:
-            raise InputError(
-                f"IMU gap: no sample between t={self.held_t:.6f} s and t={t:.6f} s "
-                f"({t - self.held_t:.3f} s > max_imu_gap_s={self.max_gap_s})"
-            )
-        assert self.pim is not None
+        assert self.pim is not None and self.held_t is not None
         gyro, accel = self.held_gyro, self.held_accel
         if self.interpolate and self.lookahead is not None and self.lookahead[0] > self.held_t:
             # Samples are instantaneous values: use the straight line between this sample

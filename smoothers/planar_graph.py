@@ -45,6 +45,7 @@ from datasets.rotations import rot2, wrap_angle
 from datasets.sequence import InitialState
 from datasets.state import BlockName, Frame
 from smoothers.covariances import MarginalSource, pose_covariance, vector_covariance
+from smoothers.held_input import held_interval
 from smoothers.initialization import InitialPriors
 
 _S = np.array([[0.0, -1.0], [1.0, 0.0]])
@@ -145,15 +146,9 @@ class GyroAccumulator:
         self.elapsed = 0.0
 
     def _integrate_until(self, t: float) -> None:
-        if self.held_t is None:
-            return
-        dt = t - self.cursor
+        dt = held_interval(self.cursor, self.held_t, t, self.max_gap_s, "gyro")
         if dt <= 0.0:
             return
-        if t - self.held_t > self.max_gap_s:
-            raise InputError(
-                f"gyro gap: no sample between t={self.held_t:.6f} s and t={t:.6f} s (max gap {self.max_gap_s} s)"
-            )
         self.dtheta += self.held_rate * dt
         self.elapsed += dt
         self.cursor = t
