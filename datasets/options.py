@@ -62,9 +62,17 @@ def describe_model(model: type[BaseModel]) -> list[str]:
     lines = []
     for name, info in model.model_fields.items():
         annotation = getattr(info.annotation, "__name__", str(info.annotation))
-        lines.append(
-            f"{name} ({annotation}, default {info.default!r}): {info.description or ''}".rstrip(
-                ": "
+        if info.default_factory is not None:
+            default = (
+                "its own defaults"
+                if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel)
+                else repr(info.default_factory())
             )
+        elif info.is_required():
+            default = "required"
+        else:
+            default = repr(info.default)
+        lines.append(
+            f"{name} ({annotation}, default {default}): {info.description or ''}".rstrip(": ")
         )
     return lines
