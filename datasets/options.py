@@ -64,7 +64,7 @@ def describe_model(model: type[BaseModel]) -> list[str]:
         annotation = getattr(info.annotation, "__name__", str(info.annotation))
         if info.default_factory is not None:
             default = (
-                "its own defaults"
+                "as listed below"
                 if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel)
                 else repr(info.default_factory())
             )
