@@ -10,7 +10,10 @@ from __future__ import annotations
 
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
+
+from datasets.errors import InputError
 
 DEFAULT_GATE_PROBABILITY = 0.99
 DEFAULT_NEW_LANDMARK_PROBABILITY = 0.9999
@@ -78,3 +81,17 @@ class MeasurementNoiseOptions(BaseModel):
     measurement_noise_scale: float = Field(
         1.0, gt=0, description="multiplies the landmark covariances the scans carry"
     )
+
+
+def per_body_axis(value: float | list[float], dimension: int, name: str) -> np.ndarray:
+    """An option given for every axis (one number) or per body axis ([forward, lateral(,
+    vertical)]) as a (dimension,) array; ``InputError`` naming the option when a value is
+    negative or the list has the wrong length."""
+    values = np.asarray(value, dtype=float).ravel()
+    if values.size == 1:
+        values = np.full(dimension, float(values[0]))
+    if values.size != dimension or not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise InputError(
+            f"option {name}: expected one value >= 0 or {dimension} (one per body axis), got {value}"
+        )
+    return values

@@ -7,8 +7,11 @@ Three inputs, whichever the sequence provides (first match wins):
   dp (world), db_g, db_a] propagated with the first-order model and the sequence's stated
   IMU noise densities, so NEES of dead reckoning is meaningful too.
 - 2-D odometry: compose relative poses, or integrate (v_forward, omega) as a unicycle.
-- 2-D gyro only: heading from the gyro, the initial body-frame velocity held constant (its
-  covariance is approximate: increments are treated as independent).
+- 2-D gyro only: heading from the gyro, the initial body-frame velocity held constant. The
+  covariance is that of the model the gyro-driven filters assume (a body-velocity random
+  walk, per body axis, and the gyro bias, both kept in a 6-state error [pose (right
+  perturbation, GTSAM's Pose2 order), body velocity, gyro bias]), so the position variance
+  grows with the cube of time as an integrated random walk does.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
+from datasets.estimator_options import per_body_axis
 from datasets.measurements import GyroSample, ImuSample, Measurement, Odometry, Sensor
 from datasets.rotations import (
     matrix_from_quat_wxyz,
@@ -44,10 +48,10 @@ class DeadReckoningConfig(BaseModel):
     max_gap_s: float = Field(
         1.0, gt=0, description="a gap between motion samples longer than this is an error"
     )
-    gyro_velocity_sigma_m_s2: float = Field(
+    gyro_velocity_sigma_m_s2: float | list[float] = Field(
         0.05,
-        ge=0,
-        description="2-D gyro-only: random-walk density of the assumed-constant body velocity [m/s^2/sqrt(Hz)]",
+        description="2-D gyro-only: random-walk density of the assumed-constant body velocity "
+        "[m/s^2/sqrt(Hz)]; or one value per body axis [forward, lateral]",
     )
 
 
@@ -102,10 +106,14 @@ class DeadReckoning:
             self.heading = float(start.rotation)
             # body-frame velocity held constant in the gyro-only mode
             self.body_velocity = rot2(self.heading).T @ velocity
-            self.covariance = np.diag(
-                [start.position_sigma_m**2] * 2 + [start.rotation_sigma_rad**2]
-            )
-            self.body_velocity_variance = start.velocity_sigma_m_s**2
+            pose_variances = [start.position_sigma_m**2] * 2 + [start.rotation_sigma_rad**2]
+            if self.input is Sensor.GYRO:
+                self.velocity_walk = per_body_axis(
+                    config.gyro_velocity_sigma_m_s2, 2, "gyro_velocity_sigma_m_s2"
+                )
+                pose_variances += [start.velocity_sigma_m_s**2] * 2
+                pose_variances += [(self.noise.gyro_bias_sigma_rad_s or 0.0) ** 2]
+            self.covariance = np.diag(pose_variances)
         self._record()
 
     # ------------------------------------------------------------------ recording
@@ -128,7 +136,7 @@ class DeadReckoning:
                 BlockName.ACCEL_BIAS, self.t, np.zeros(3), self.covariance[12:15, 12:15]
             )
         else:
-            self.recorder.pose(self.t, self.position, self.heading, self.covariance)
+            self.recorder.pose(self.t, self.position, self.heading, self.covariance[:3, :3])
 
     def _advance_time(self, t: float) -> float:
         """The step since the last motion sample [s] (the stream clock checked the order)."""
@@ -219,11 +227,21 @@ class DeadReckoning:
         if not np.isfinite(rate):
             raise InputError(f"non-finite gyro rate at t={sample.t:.6f} s")
         dt = self._advance_time(sample.t)
-        self.body_velocity_variance += self.config.gyro_velocity_sigma_m_s2**2 * dt
         increment = np.array([self.body_velocity[0] * dt, self.body_velocity[1] * dt, rate * dt])
-        gyro_variance = (self.noise.gyro_noise_density or 0.0) ** 2 * dt
-        increment_cov = np.diag([self.body_velocity_variance * dt**2] * 2 + [gyro_variance])
-        self._compose_planar(increment, increment_cov)
+        # error state [pose (3, right perturbation), body velocity (2), gyro bias]: the
+        # increment's translation moves with the velocity error, its turn with the bias
+        transition = np.eye(6)
+        transition[:3, :3] = pose2_inverse_adjoint(increment)
+        transition[0:2, 3:5] = dt * np.eye(2)
+        transition[2, 5] = -dt
+        process = np.diag(
+            [0.0, 0.0, (self.noise.gyro_noise_density or 0.0) ** 2 * dt]
+            + list(self.velocity_walk**2 * dt)
+            + [(self.noise.gyro_bias_walk or 0.0) ** 2 * dt]
+        )
+        kalman.propagate_vehicle(self.covariance, 6, transition, process)
+        self.position = self.position + rot2(self.heading) @ increment[:2]
+        self.heading = float(wrap_angle(self.heading + increment[2]))
         self.t = sample.t
         self._record()
 

@@ -80,10 +80,10 @@ class SmootherConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOptio
     relinearize_threshold: float = Field(0.05, gt=0, description="iSAM2 relinearisation threshold")
     relinearize_skip: int = Field(1, ge=1, description="iSAM2 relinearise every k updates")
     extra_iterations: int = Field(0, ge=0, description="extra iSAM2 update() calls per keyframe")
-    planar_velocity_walk_m_s2: float = Field(
+    planar_velocity_walk_m_s2: float | list[float] = Field(
         0.1,
-        gt=0,
-        description="2-D gyro-only model: body-velocity random-walk density [m/s^2/sqrt(Hz)]",
+        description="2-D gyro-only model: body-velocity random-walk density [m/s^2/sqrt(Hz)]; "
+        "or one value per body axis [forward, lateral]",
     )
     planar_gyro_density: float | None = Field(
         None, gt=0, description="2-D gyro-only: gyro white-noise density; None: sequence.noise"

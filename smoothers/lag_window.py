@@ -64,7 +64,7 @@ class WindowExports:
                 self.keyframes.add(k)
         read = values.atPoint3 if self.dimension == 3 else values.atPoint2
         for landmark in departing:
-            if values.exists(landmark.key):
+            if values.exists(landmark.key) and landmark.anchor_position is None:
                 self.landmarks[landmark.map_id] = (
                     np.asarray(read(landmark.key), dtype=float),
                     marginals.marginalCovariance(landmark.key),

@@ -36,6 +36,7 @@ from datasets.estimate import Estimate
 from datasets.sequence import Sequence
 from smoothers.backends import FixedLagBackend
 from smoothers.config import BatchConfig, FixedLagConfig, Isam2Config
+from smoothers.dense_marginals import DenseQrMarginals
 from smoothers.gtsam_errors import explain, gtsam_message
 from smoothers.initialization import dead_reckoning_values, levenberg_marquardt
 from smoothers.joint_marginals import JointMarginals
@@ -72,18 +73,23 @@ class SmootherBatch(KeyframeSmoother):
     record_causal: ClassVar[bool] = False
     mode: ClassVar[str] = "batch"
 
-    def _marginals(self, result: gtsam.Values) -> gtsam.Marginals:
-        """``gtsam.Marginals`` of the whole graph, Cholesky first, QR when it fails."""
+    def _marginals(self, result: gtsam.Values) -> gtsam.Marginals | DenseQrMarginals:
+        """``gtsam.Marginals`` of the whole graph (Cholesky); a dense QR of the whole
+        linearised graph when it fails (``smoothers.dense_marginals``)."""
         try:
             return gtsam.Marginals(self.full_graph, result)
         except RuntimeError as error:
             self.recorder.event(
-                self.keyframe_t[-1], "factorization_fallback", to="QR", reason=gtsam_message(error)
+                self.keyframe_t[-1],
+                "factorization_fallback",
+                to="dense QR",
+                reason=gtsam_message(error),
             )
             self.notes.append(
-                f"batch marginals: Cholesky failed, QR used (GTSAM: {gtsam_message(error)})"
+                "batch marginals: Cholesky failed, a dense QR of the whole graph used "
+                f"(GTSAM: {gtsam_message(error)})"
             )
-            return gtsam.Marginals(self.full_graph, result, gtsam.Marginals.Factorization.QR)
+            return DenseQrMarginals(self.full_graph, result)
 
     def estimate(self) -> Estimate:
         self._flush()

@@ -14,6 +14,7 @@ smoother starts from what the filters it is compared with start from
 from __future__ import annotations
 
 from datasets.errors import InputError
+from datasets.estimator_options import per_body_axis
 from datasets.measurements import Sensor
 from datasets.sequence import Sequence
 from smoothers.config import SmootherConfig
@@ -70,7 +71,7 @@ def motion_model(config: SmootherConfig, sequence: Sequence) -> ImuMotion | Plan
     gyro_walk = sequence.noise.gyro_bias_walk or DEFAULT_PLANAR_GYRO_BIAS_WALK
     return PlanarMotion(
         source,
-        c.planar_velocity_walk_m_s2,
+        per_body_axis(c.planar_velocity_walk_m_s2, 2, "planar_velocity_walk_m_s2"),
         gyro_density or 0.0,
         gyro_walk,
         c.odometry_lateral_sigma_m_s,

@@ -36,8 +36,15 @@ def landmark_map(
     t: float,
 ) -> LandmarkMap:
     """World-frame map at time ``t`` [s] of those ``landmarks`` whose variables ``values``
-    holds, with their joint covariance from one query."""
-    present = [landmark for landmark in landmarks if values.exists(landmark.key)]
+    holds, with their joint covariance from one query. Anchors (known landmarks held by a
+    tight prior at their surveyed position) are inputs, not estimates: left out, as the
+    filters leave theirs out (scored, their near-zero error against a 1 mm prior would pull
+    the map NEES down: 0.89 per dof on the circle calibration with 3 of 28 anchored)."""
+    present = [
+        landmark
+        for landmark in landmarks
+        if values.exists(landmark.key) and landmark.anchor_position is None
+    ]
     if not present:
         return LandmarkMap.empty(dimension)
     keys = [landmark.key for landmark in present]

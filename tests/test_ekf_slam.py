@@ -111,6 +111,30 @@ def test_gyro_cv_transition_matches_finite_differences(dimension: int, rotate: b
     assert np.all(np.linalg.eigvalsh(process) >= -1e-15)
 
 
+def test_acceleration_noise_per_body_axis_lies_along_the_heading() -> None:
+    """Forward-only acceleration noise: the velocity process noise is ``q dt u u^T`` with
+    ``u`` the new heading; an isotropic density gives ``q dt I`` whatever the heading."""
+    layout = VehicleLayout(2, True, False)
+    mean = VehicleMean(np.zeros(2), 0.7, np.array([1.0, 0.0]), None)
+    dt, rate = 0.1, np.array([0.3])
+    _, _, forward = predict_gyro_cv(
+        mean, layout, rate, dt, GyroNoise(0.0, 0.0, np.array([0.2, 0.0]))
+    )
+    heading = 0.7 + 0.3 * dt
+    along = np.array([np.cos(heading), np.sin(heading)])
+    np.testing.assert_allclose(
+        forward[layout.velocity, layout.velocity], 0.04 * dt * np.outer(along, along), atol=1e-15
+    )
+    _, _, isotropic = predict_gyro_cv(mean, layout, rate, dt, GyroNoise(0.0, 0.0, 0.2))
+    np.testing.assert_allclose(
+        isotropic[layout.velocity, layout.velocity], 0.04 * dt * np.eye(2), atol=1e-15
+    )
+    with pytest.raises(InputError, match="acceleration_density"):
+        from datasets.estimator_options import per_body_axis
+
+        per_body_axis([0.1, 0.2, 0.3], 2, "acceleration_density")
+
+
 @pytest.mark.parametrize("dimension", [2, 3])
 def test_observation_and_initialisation_jacobians(dimension: int) -> None:
     rng = np.random.default_rng(10 + dimension)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import gtsam
 import gtsam_unstable
 import numpy as np
+import pytest
 from gtsam.symbol_shorthand import L, V, X
 
 from datasets.rotations import so3_exp
@@ -97,30 +98,58 @@ def test_gyro_only_motion_factor_jacobians_match_finite_differences():
     pose_k = gtsam.Pose2(0.3, -1.0, 0.4)
     pose_next = gtsam.Pose2(0.8, -0.7, 0.55)
     state = np.array([0.5, 0.05, 0.01])
+    state_next = np.array([0.47, 0.06, 0.012])
     dtheta, dt = 0.12, 0.1
-    _, blocks = constant_velocity_error(pose_k, pose_next, state, dtheta, dt)
+    args = [pose_k, pose_next, state, state_next]
+    _, blocks = constant_velocity_error(*args, dtheta, dt)
     step = 1e-6
-    for which in range(3):
+    for which in range(4):
         numeric = np.zeros((3, 3))
         for i in range(3):
             delta = np.zeros(3)
             delta[i] = step
-            args = [pose_k, pose_next, state]
             plus, minus = list(args), list(args)
             if which < 2:
                 plus[which] = args[which].retract(delta)
                 minus[which] = args[which].retract(-delta)
             else:
-                plus[2] = state + delta
-                minus[2] = state - delta
-            e_plus, _ = constant_velocity_error(plus[0], plus[1], plus[2], dtheta, dt)
-            e_minus, _ = constant_velocity_error(minus[0], minus[1], minus[2], dtheta, dt)
+                plus[which] = args[which] + delta
+                minus[which] = args[which] - delta
+            e_plus, _ = constant_velocity_error(*plus, dtheta, dt)
+            e_minus, _ = constant_velocity_error(*minus, dtheta, dt)
             numeric[:, i] = (e_plus - e_minus) / (2 * step)
         assert np.allclose(blocks[which], numeric, atol=1e-6), which
     # The factor wires the same error: zero at the model's own prediction.
-    factor = constant_velocity_factor(X(0), X(1), V(0), dtheta, dt, 0.1, 0.01)
+    factor = constant_velocity_factor(
+        X(0), X(1), V(0), V(1), dtheta, dt, np.array([0.1, 0.1]), 0.01
+    )
     values = gtsam.Values()
     values.insert(X(0), pose_k)
     values.insert(X(1), predict_constant_velocity(pose_k, state, dtheta, dt))
     values.insert(V(0), state)
+    values.insert(V(1), state)
     assert factor.error(values) < 1e-20
+
+
+def test_trapezoid_displacement_error_is_independent_of_the_velocity_change():
+    """Van Loan's discretisation of a velocity random walk (one axis, density q): the
+    displacement measured against the mean velocity has variance q^2 dt^3 / 12 and no
+    correlation with the velocity change, which is why the planar smoother's two factors
+    are exact; measured against the first velocity (the old form) the correlation is 0.87."""
+    from scipy.linalg import expm
+
+    q, dt = 0.3, 0.7
+    a = np.array([[0.0, 1.0], [0.0, 0.0]])  # d(p, v)/dt = (v, w)
+    g = np.array([[0.0], [1.0]])
+    van_loan = np.zeros((4, 4))
+    van_loan[:2, :2] = -a
+    van_loan[:2, 2:] = q**2 * g @ g.T
+    van_loan[2:, 2:] = a.T
+    block = expm(van_loan * dt)
+    transition = block[2:, 2:].T
+    process = transition @ block[:2, 2:]  # Cov(w_p, w_v) of one step
+    trapezoid = np.array([[1.0, -dt / 2], [0.0, 1.0]])  # (w_p - w_v dt / 2, w_v)
+    errors = trapezoid @ process @ trapezoid.T
+    np.testing.assert_allclose(errors, np.diag([q**2 * dt**3 / 12, q**2 * dt]), atol=1e-12)
+    correlation = process[0, 1] / np.sqrt(process[0, 0] * process[1, 1])
+    assert correlation == pytest.approx(np.sqrt(3) / 2)

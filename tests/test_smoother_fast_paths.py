@@ -182,3 +182,39 @@ def test_fixed_lag_exports_and_batch_marginals_are_batched_and_well_formed():
     _, batch = _run(SmootherBatch, SmootherBatch.Config(anchors=3), sequence)
     assert batch.causal.pose is None and batch.smoothed.pose.covariances is not None
     assert batch.landmarks.covariances is not None
+
+
+def test_dense_qr_marginals_equal_gtsam_marginals_where_cholesky_works():
+    from smoothers.dense_marginals import DenseQrMarginals
+
+    rng = np.random.default_rng(0)
+    graph = gtsam.NonlinearFactorGraph()
+    values = gtsam.Values()
+    graph.add(gtsam.PriorFactorPose2(X(0), gtsam.Pose2(), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+    values.insert(X(0), gtsam.Pose2())
+    for k in range(1, 6):
+        step = gtsam.Pose2(1.0, 0.1 * rng.standard_normal(), 0.2 * rng.standard_normal())
+        noise = gtsam.noiseModel.Diagonal.Sigmas(np.array([0.05, 0.02, 0.01]) * (1 + k))
+        graph.add(gtsam.BetweenFactorPose2(X(k - 1), X(k), step, noise))
+        values.insert(X(k), values.atPose2(X(k - 1)).compose(step))
+    keys = [X(1), X(3), X(5)]
+    dense = JointMarginals.query(DenseQrMarginals(graph, values), keys)
+    reference = JointMarginals.query(gtsam.Marginals(graph, values), keys)
+    np.testing.assert_allclose(dense.matrix(), reference.matrix(), rtol=1e-9, atol=1e-14)
+
+
+def test_batch_marginals_fall_back_to_dense_qr_where_cholesky_fails():
+    """A lateral velocity walk of zero (variance floored at 1e-12) makes the planar batch
+    smoother's information matrix too ill-conditioned for Cholesky: the run finishes on the
+    dense QR fallback, with its event and note, instead of raising."""
+    sequence = load_dataset("sim:guerreiro-loop", 0, {"duration_s": "5", "speed_profile": "random"})
+    _, estimate = _run(
+        SmootherBatch,
+        SmootherBatch.Config(planar_velocity_walk_m_s2=[0.02, 0.0]),
+        sequence,
+    )
+    events = [e for e in estimate.diagnostics.events if e.kind == "factorization_fallback"]
+    assert any(e.details.get("to") == "dense QR" for e in events)
+    assert any("dense QR" in note for note in estimate.notes)
+    covariances = estimate.smoothed.pose.covariances
+    assert np.all(np.isfinite(covariances)) and np.all(np.linalg.eigvalsh(covariances) > 0)

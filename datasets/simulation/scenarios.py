@@ -49,6 +49,7 @@ from datasets.simulation.landmarks import (
 )
 from datasets.simulation.trajectories import (
     CircleMotion,
+    LateralDrift,
     PlanarPathMotion,
     RandomSpeed,
     RoundedPolylinePath,
@@ -167,6 +168,19 @@ class GuerreiroLoopOptions(_CommonOptions):
         description="'sinusoidal': +-30 % in five smooth cycles (the same for every seed); 'random': a seeded "
         "mean-reverting random walk of density speed_walk_m_s_sqrt_s (the paper's velocity model (2))",
     )
+    speed_reversion_s: float | None = Field(
+        5.0,
+        gt=0,
+        description="mean-reversion time of the random speed [s]; null: a pure random walk (exactly "
+        "the model of eq. (2), for calibration; not rescaled, so the run must end before the path does)",
+    )
+    lateral_walk_m_s_sqrt_s: float = Field(
+        0.0,
+        ge=0,
+        le=0.05,
+        description="density of a lateral body-velocity random walk [m/s/sqrt(s)]: the vehicle slips "
+        "sideways while heading along the path (0: it follows the path)",
+    )
     speed_walk_m_s_sqrt_s: float = Field(
         0.02,
         ge=0,
@@ -209,7 +223,7 @@ def _noise_factors(noise_scale: float) -> tuple[float, float]:
 def _generators(seed: int) -> dict[str, np.random.Generator]:
     """Independent generators per purpose, all from ``seed``."""
     # spawn keys are indices: adding a name at the end leaves the others' streams unchanged
-    names = ("inertial", "landmarks", "spare", "initial", "motion")
+    names = ("inertial", "landmarks", "spare", "initial", "motion", "drift")
     children = np.random.SeedSequence(seed).spawn(len(names))
     return {name: np.random.default_rng(child) for name, child in zip(names, children)}
 
@@ -425,6 +439,10 @@ def guerreiro_loop_motion(
     mean_speed_m_s: float,
     speed_walk_m_s_sqrt_s: float | None = None,
     rng: np.random.Generator | None = None,
+    speed_reversion_s: float | None = 5.0,
+    profile_s: float | None = None,
+    lateral_walk_m_s_sqrt_s: float = 0.0,
+    drift_rng: np.random.Generator | None = None,
 ) -> PlanarPathMotion:
     """The loop of Guerreiro et al. (2013) section V: start in the middle of the bottom
     corridor heading east, go counterclockwise round the ring corridor and on past the start
@@ -439,11 +457,22 @@ def guerreiro_loop_motion(
     beyond = LOOP_PATH_LENGTH_M - lap.length_m
     path = RoundedPolylinePath(np.array(vertices + [start + [beyond, 0.0]]), LOOP_TURN_LENGTH_M)
     duration = path.length_m / mean_speed_m_s
+    if profile_s is not None:
+        duration = min(duration, profile_s)  # a pure random walk: drawn only as far as needed
+    drift = None
+    if lateral_walk_m_s_sqrt_s > 0.0:
+        if drift_rng is None:
+            raise ValueError("a lateral drift needs a generator")
+        drift = LateralDrift(lateral_walk_m_s_sqrt_s, duration, drift_rng)
     if speed_walk_m_s_sqrt_s is None:
-        return PlanarPathMotion(path, SinusoidalSpeed(mean_speed_m_s, 0.3, 5, duration))
+        return PlanarPathMotion(path, SinusoidalSpeed(mean_speed_m_s, 0.3, 5, duration), drift)
     if rng is None:
         raise ValueError("a random speed profile needs a generator")
-    return PlanarPathMotion(path, RandomSpeed(mean_speed_m_s, speed_walk_m_s_sqrt_s, duration, rng))
+    return PlanarPathMotion(
+        path,
+        RandomSpeed(mean_speed_m_s, speed_walk_m_s_sqrt_s, duration, rng, speed_reversion_s),
+        drift,
+    )
 
 
 def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
@@ -464,17 +493,33 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     """
     generators = _generators(seed)
     random_speed = options.speed_profile == "random"
-    motion = guerreiro_loop_motion(
-        options.mean_speed_m_s,
-        options.speed_walk_m_s_sqrt_s if random_speed else None,
-        generators["motion"] if random_speed else None,
-    )
-    full = motion.duration_s
+    walk = random_speed and options.speed_reversion_s is None
+    try:
+        motion = guerreiro_loop_motion(
+            options.mean_speed_m_s,
+            options.speed_walk_m_s_sqrt_s if random_speed else None,
+            generators["motion"] if random_speed else None,
+            options.speed_reversion_s,
+            options.duration_s if walk else None,
+            options.lateral_walk_m_s_sqrt_s,
+            generators["drift"],
+        )
+    except ValueError as error:
+        raise InputError(f"sim:guerreiro-loop seed {seed}: {error}") from None
+    full = motion.duration_s if not walk else LOOP_PATH_LENGTH_M / options.mean_speed_m_s
     duration = options.duration_s if options.duration_s is not None else full
     if duration > full + 1e-9:
         raise InputError(
             f"sim:guerreiro-loop: duration_s={duration} exceeds the path's {full:.1f} s"
         )
+    if random_speed and options.speed_reversion_s is None:
+        travelled = float(motion.speed.evaluate(np.array([duration]))[0][0])
+        if travelled > motion.path.length_m:
+            raise InputError(
+                f"sim:guerreiro-loop: with speed_reversion_s=null the walk of seed {seed} reaches "
+                f"the end of the {motion.path.length_m:.0f} m path before t={duration:g} s: "
+                "shorten duration_s"
+            )
     plan = ring_corridor_building(niche_depth_m=options.niche_depth_m)
     drawn, stated = _noise_factors(options.noise_scale)
     nominal = InertialNoise(

@@ -377,7 +377,8 @@ class SinusoidalSpeed:
 class RandomSpeed:
     """A seeded random speed: mean-reverting random walk (Ornstein-Uhlenbeck)
     ``dv = -(v - v_mean) / tau dt + sigma dW``, rescaled so that the distance after
-    ``duration_s`` is exactly ``v_mean * duration_s`` (the path is still covered once).
+    ``duration_s`` is exactly ``v_mean * duration_s`` (the path is still covered once);
+    with ``tau_s=None`` a pure random walk ``dv = sigma dW``, not rescaled.
 
     Over times much shorter than ``tau`` the speed is a random walk of density ``sigma``
     [m/s/sqrt(s)]: the velocity model of Guerreiro et al. eq. (2) with its disturbance
@@ -395,14 +396,19 @@ class RandomSpeed:
         sigma: float,
         duration_s: float,
         rng: np.random.Generator,
-        tau_s: float = 5.0,
+        tau_s: float | None = 5.0,
     ):
         self.mean_m_s = float(mean_m_s)
         self.duration_s = float(duration_s)
         count = int(np.ceil(self.duration_s / self.GRID_S)) + 2
-        decay = np.exp(-self.GRID_S / tau_s)
-        # exact OU transition over one grid step
-        step_sigma = sigma * np.sqrt(tau_s / 2.0 * (1.0 - decay**2))
+        if tau_s is None:
+            # a pure random walk (eq. (2) exactly), not rescaled: the distance is whatever
+            # the walk gives
+            decay, step_sigma = 1.0, sigma * np.sqrt(self.GRID_S)
+        else:
+            decay = np.exp(-self.GRID_S / tau_s)
+            # exact OU transition over one grid step
+            step_sigma = sigma * np.sqrt(tau_s / 2.0 * (1.0 - decay**2))
         shocks = rng.standard_normal(count - 1) * step_sigma
         # deviation[i] = decay * deviation[i - 1] + shocks[i - 1], from deviation[0] = 0
         deviation = np.concatenate([[0.0], lfilter([1.0], [1.0, -decay], shocks)])
@@ -410,7 +416,9 @@ class RandomSpeed:
         self._times = np.arange(count) * self.GRID_S
         distance = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * self.GRID_S)])
         scale = (
-            self.mean_m_s
+            1.0
+            if tau_s is None
+            else self.mean_m_s
             * self.duration_s
             / float(np.interp(self.duration_s, self._times, distance))
         )
@@ -430,17 +438,59 @@ class RandomSpeed:
         return distance, speed, slope
 
 
+class LateralDrift:
+    """A seeded lateral body velocity ``u``: a random walk ``du = sigma dW`` from 0, drawn on
+    a 10 ms grid and linear in between (as ``RandomSpeed``): a vehicle that slips sideways
+    while its heading follows the path, so that its body velocity ``(v, u)`` is exactly the
+    random walk per body axis the gyro-driven estimators assume."""
+
+    GRID_S = RandomSpeed.GRID_S
+
+    def __init__(self, sigma: float, duration_s: float, rng: np.random.Generator):
+        count = int(np.ceil(float(duration_s) / self.GRID_S)) + 2
+        shocks = rng.standard_normal(count - 1) * sigma * np.sqrt(self.GRID_S)
+        self._times = np.arange(count) * self.GRID_S
+        self._lateral = np.concatenate([[0.0], np.cumsum(shocks)])
+
+    def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Lateral velocity [m/s] and its derivative [m/s^2] at times t, each (N,)."""
+        t = np.asarray(t, dtype=float)
+        index = np.clip(np.searchsorted(self._times, t, side="right") - 1, 0, len(self._times) - 2)
+        slope = (self._lateral[index + 1] - self._lateral[index]) / self.GRID_S
+        return self._lateral[index] + slope * (t - self._times[index]), slope
+
+    @property
+    def grid(self) -> np.ndarray:
+        return self._times
+
+
 class PlanarPathMotion:
-    """A planar vehicle following ``path`` with a speed profile, heading along the path.
+    """A planar vehicle following ``path`` with a speed profile, heading along the path;
+    with a ``LateralDrift`` it also slips sideways (heading still along the path).
 
     Yaw rate is ``curvature * speed``; acceleration is ``v' t + v^2 kappa n`` (tangent t,
-    left normal n).
+    left normal n), plus ``u' n - u kappa v t`` for a lateral velocity ``u``; the position
+    adds ``int u n dt`` (trapezoid on the drift's 10 ms grid, linear in between).
     """
 
-    def __init__(self, path: RoundedPolylinePath, speed: SinusoidalSpeed | RandomSpeed):
+    def __init__(
+        self,
+        path: RoundedPolylinePath,
+        speed: SinusoidalSpeed | RandomSpeed,
+        drift: LateralDrift | None = None,
+    ):
         self.path = path
         self.speed = speed
+        self.drift = drift
         self.duration_s = speed.duration_s
+        if drift is not None:
+            grid = drift.grid
+            lateral, _ = drift.evaluate(grid)
+            distance, _, _ = speed.evaluate(grid)
+            _, heading, _ = path.evaluate(distance)
+            moving = lateral[:, None] * np.column_stack([-np.sin(heading), np.cos(heading)])
+            steps = 0.5 * (moving[1:] + moving[:-1]) * np.diff(grid)[:, None]
+            self._offset = np.vstack([np.zeros(2), np.cumsum(steps, axis=0)])
 
     def kinematics(self, t: np.ndarray) -> Kinematics:
         t = np.asarray(t, dtype=float)
@@ -448,11 +498,25 @@ class PlanarPathMotion:
         position, heading, curvature = self.path.evaluate(distance)
         tangent = np.column_stack([np.cos(heading), np.sin(heading)])
         normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+        velocity = speed[:, None] * tangent
+        acceleration = speed_rate[:, None] * tangent + (speed**2 * curvature)[:, None] * normal
+        if self.drift is not None:
+            lateral, lateral_rate = self.drift.evaluate(t)
+            grid = self.drift.grid
+            position = position + np.column_stack(
+                [np.interp(t, grid, self._offset[:, axis]) for axis in range(2)]
+            )
+            velocity = velocity + lateral[:, None] * normal
+            acceleration = (
+                acceleration
+                + lateral_rate[:, None] * normal
+                - (lateral * curvature * speed)[:, None] * tangent
+            )
         return Kinematics(
             t=t,
             position=position,
-            velocity=speed[:, None] * tangent,
-            acceleration=speed_rate[:, None] * tangent + (speed**2 * curvature)[:, None] * normal,
+            velocity=velocity,
+            acceleration=acceleration,
             rotation=rot2_batch(heading),
             body_rate=(curvature * speed)[:, None],
             heading=heading,

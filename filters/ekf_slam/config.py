@@ -22,10 +22,10 @@ class EkfSlamConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOption
         "auto",
         description="motion model input: auto = odometry when the data has it, else the gyro (IMU gyro in 3-D)",
     )
-    acceleration_density: float = Field(
+    acceleration_density: float | list[float] = Field(
         0.3,
-        ge=0,
-        description="gyro-driven model: white acceleration density driving the velocity [m/s^2/sqrt(Hz)]",
+        description="gyro-driven model: white acceleration density driving the velocity "
+        "[m/s^2/sqrt(Hz)]; or one value per body axis [forward, lateral(, vertical)]",
     )
     rotate_velocity_with_gyro: bool = Field(
         True,

@@ -42,6 +42,7 @@ from pydantic import BaseModel
 
 from datasets.errors import InputError
 from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
+from datasets.estimator_options import per_body_axis
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Odometry, Sensor
 from datasets.odometry_noise import OdometryNoiseModel
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, so3_exp, wrap_angle
@@ -85,7 +86,9 @@ class EkfSlam:
         self.gyro_noise = GyroNoise(
             gyro_density=_first(config.gyro_noise_density, noise.gyro_noise_density, 1e-3),
             bias_walk=_first(config.gyro_bias_walk, noise.gyro_bias_walk, 1e-5),
-            acceleration_density=config.acceleration_density,
+            acceleration_density=per_body_axis(
+                config.acceleration_density, d, "acceleration_density"
+            ),
         )
         start = sequence.initial_state
         rotation = float(start.rotation) if d == 2 else matrix_from_quat_wxyz(start.rotation)

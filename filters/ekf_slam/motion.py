@@ -89,12 +89,13 @@ class GyroNoise:
     Attributes:
         gyro_density: gyro white noise [rad/s/sqrt(Hz)].
         bias_walk: gyro bias random walk [rad/s^2/sqrt(Hz)].
-        acceleration_density: white acceleration driving the velocity [m/s^2/sqrt(Hz)].
+        acceleration_density: white acceleration driving the velocity [m/s^2/sqrt(Hz)]:
+            one value for every axis, or one per body axis (forward, lateral(, vertical)).
     """
 
     gyro_density: float
     bias_walk: float
-    acceleration_density: float
+    acceleration_density: float | np.ndarray
 
 
 def predict_gyro_cv(
@@ -158,11 +159,15 @@ def predict_gyro_cv(
         else np.zeros_like(transition)
     )
     if layout.velocity is not None and dt > 0:
-        q = noise.acceleration_density**2
-        process[layout.position, layout.position] += np.eye(d) * q * dt**3 / 3.0
-        process[layout.position, layout.velocity] += np.eye(d) * q * dt**2 / 2.0
-        process[layout.velocity, layout.position] += np.eye(d) * q * dt**2 / 2.0
-        process[layout.velocity, layout.velocity] += np.eye(d) * q * dt
+        # white acceleration along the body axes (a ground vehicle accelerates along its
+        # heading far more than across it), expressed in the world frame at the new attitude
+        body = np.broadcast_to(np.asarray(noise.acceleration_density, dtype=float) ** 2, (d,))
+        axes = rot2(float(new_rotation)) if d == 2 else np.asarray(new_rotation)
+        q = (axes * body) @ axes.T
+        process[layout.position, layout.position] += q * dt**3 / 3.0
+        process[layout.position, layout.velocity] += q * dt**2 / 2.0
+        process[layout.velocity, layout.position] += q * dt**2 / 2.0
+        process[layout.velocity, layout.velocity] += q * dt
     if layout.gyro_bias is not None:
         process[layout.gyro_bias, layout.gyro_bias] += (
             np.eye(layout.rotation_size) * noise.bias_walk**2 * dt

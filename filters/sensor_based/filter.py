@@ -56,6 +56,7 @@ from pydantic import BaseModel
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
+from datasets.estimator_options import per_body_axis
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, so3_exp
 from datasets.sequence import Sequence
@@ -95,11 +96,7 @@ class SensorBasedSlam:
         density = config.gyro_noise_density
         if density is None:
             density = sequence.noise.gyro_noise_density or 0.0
-        velocity_walk = config.sigma_velocity_m_s
-        if isinstance(velocity_walk, list):
-            velocity_walk = self._vector(velocity_walk, d, "sigma_velocity_m_s")
-        if np.any(np.asarray(velocity_walk) < 0):
-            raise InputError(f"sigma_velocity_m_s must be >= 0, got {config.sigma_velocity_m_s}")
+        velocity_walk = per_body_axis(config.sigma_velocity_m_s, d, "sigma_velocity_m_s")
         self.noise = ProcessNoise(
             velocity_m_s=velocity_walk,
             gyro_bias_rad_s=config.sigma_gyro_bias_rad_s,
