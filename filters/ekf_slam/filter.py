@@ -54,7 +54,13 @@ from filters.association import AssociationPolicy, ScanAssociation
 from filters.ekf_slam.boundary import pose_covariance_to_interface
 from filters.ekf_slam.config import EkfSlamConfig
 from filters.ekf_slam.layout import VehicleLayout
-from filters.ekf_slam.motion import GyroNoise, VehicleMean, predict_gyro_cv, predict_odometry_2d
+from filters.ekf_slam.motion import (
+    PLANAR_J,
+    GyroNoise,
+    VehicleMean,
+    predict_gyro_cv,
+    predict_odometry_2d,
+)
 from filters.ekf_slam.observation import initialise_landmark, predict_observations
 
 
@@ -114,6 +120,10 @@ class EkfSlam:
         self.sightings: list[int] = []
         self.created_t: list[float] = []
         self.next_id = 0
+        # FEJ (odometry input only): landmarks' first estimates, and the last prediction
+        self.fej = config.first_estimate_jacobians and self.input is Sensor.ODOMETRY
+        self.first_landmarks = np.zeros((0, d))
+        self.predicted_position = np.asarray(start.position, float).copy()
         self.t = float(start.t)
         self.clock = StreamClock(f"ekf-slam on {sequence.name}", start.t)
         # time of the last motion input: a scan between motion samples moves ``t`` but not this
@@ -177,6 +187,14 @@ class EkfSlam:
                 increment,
                 increment_cov * self.config.odometry_noise_scale,
             )
+            if self.fej:
+                # Huang et al. (2008), eq. (25): the heading column at the previous
+                # prediction p_{k|k-1} instead of the updated p_{k|k}
+                transition = transition.copy()
+                transition[self.layout.position, self.layout.rotation] = (
+                    PLANAR_J @ (new.position - self.predicted_position)
+                )[:, None]
+                self.predicted_position = new.position.copy()
         else:
             if isinstance(measurement, ImuSample):
                 rate = np.asarray(measurement.gyro, float).ravel()  # the accelerometer is not used
@@ -267,14 +285,21 @@ class EkfSlam:
                 t, j, landmark_id, decision, association.reasons[j], association.inflation[j]
             )
 
+    def predict(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``predict_observations`` of map landmarks ``indices``, with FEJ Jacobians when on."""
+        return predict_observations(
+            self.vehicle,
+            self.layout,
+            self.landmarks[indices],
+            self.first_landmarks[indices] if self.fej else None,
+        )
+
     def observation_jacobian(self, indices: np.ndarray) -> tuple[np.ndarray, kalman.SparseJacobian]:
         """Predicted observations (n, d) of map landmarks ``indices`` and the stacked ``H``
         (n d rows) by its non-zero columns: the vehicle block and each landmark's own."""
         d, v = self.dimension, self.vehicle_size
         indices = np.asarray(indices, dtype=int)
-        predicted, vehicle_jac, landmark_jac = predict_observations(
-            self.vehicle, self.layout, self.landmarks[indices]
-        )
+        predicted, vehicle_jac, landmark_jac = self.predict(indices)
         n = len(indices)
         columns = np.concatenate([np.arange(v), (v + indices[:, None] * d + np.arange(d)).ravel()])
         values = np.zeros((n * d, v + n * d))
@@ -346,6 +371,7 @@ class EkfSlam:
         jacobian = kalman.SparseJacobian(np.arange(self.vehicle_size), vehicle_jac)
         self.covariance = kalman.augment(self.covariance, jacobian, point_jac @ noise @ point_jac.T)
         self.landmarks = np.vstack([self.landmarks, position])
+        self.first_landmarks = np.vstack([self.first_landmarks, position])
         self.map_ids.append(self.next_id)
         self.source_ids.append(int(source))
         self.next_id += 1
@@ -370,6 +396,7 @@ class EkfSlam:
         rows = np.concatenate([np.arange(v)] + [np.arange(v + i * d, v + i * d + d) for i in keep])
         self.covariance = kalman.marginalize(self.covariance, rows)
         self.landmarks = self.landmarks[keep]
+        self.first_landmarks = self.first_landmarks[keep]
         removed = [self.map_ids[i] for i in sorted(drop)]
         self.map_ids = [self.map_ids[i] for i in keep]
         self.source_ids = [self.source_ids[i] for i in keep]
@@ -435,9 +462,7 @@ class _MapPredictor:
         ekf = self.ekf
         d, v = ekf.dimension, ekf.vehicle_size
         indices = np.asarray(indices, dtype=int)
-        predicted, vehicle_jac, landmark_jac = predict_observations(
-            ekf.vehicle, ekf.layout, ekf.landmarks[indices]
-        )
+        predicted, vehicle_jac, landmark_jac = ekf.predict(indices)
         P = ekf.covariance
         starts = v + indices * d
         rows = starts[:, None] + np.arange(d)

@@ -21,9 +21,16 @@ from filters.ekf_slam.motion import PLANAR_J, VehicleMean
 
 
 def predict_observations(
-    mean: VehicleMean, layout: VehicleLayout, landmarks: np.ndarray
+    mean: VehicleMean,
+    layout: VehicleLayout,
+    landmarks: np.ndarray,
+    linearization_landmarks: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Predicted body-frame observations of world landmarks (m, d).
+
+    ``linearization_landmarks`` (m, d): where the rotation column of the vehicle Jacobian is
+    evaluated (the landmarks' first estimates for FEJ, Huang, Mourikis and Roumeliotis 2008,
+    eq. (26)); default the landmarks themselves (the standard EKF).
 
     Returns:
         z (m, d), vehicle Jacobians (m, d, n_v), landmark Jacobian R^T (d, d) (the same for all).
@@ -31,14 +38,19 @@ def predict_observations(
     rotation = mean.rotation_matrix()
     relative = np.asarray(landmarks, float) - mean.position
     predicted = relative @ rotation  # rows: R^T (l - p)
+    lever = (
+        relative
+        if linearization_landmarks is None
+        else np.asarray(linearization_landmarks, float) - mean.position
+    )
     m, d = predicted.shape
     vehicle = np.zeros((m, d, layout.size))
     vehicle[:, :, layout.position] = -rotation.T
     if d == 2:
-        vehicle[:, :, layout.rotation] = (-(predicted @ PLANAR_J.T))[:, :, None]
+        vehicle[:, :, layout.rotation] = (-((lever @ rotation) @ PLANAR_J.T))[:, :, None]
     else:
         vehicle[:, :, layout.rotation] = np.einsum(
-            "ij,mjk->mik", rotation.T, np.array([skew(r) for r in relative]).reshape(m, 3, 3)
+            "ij,mjk->mik", rotation.T, np.array([skew(r) for r in lever]).reshape(m, 3, 3)
         )
     return predicted, vehicle, rotation.T
 
