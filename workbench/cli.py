@@ -151,8 +151,14 @@ def run_command(
         task = progress.add_task(f"{estimator} on {dataset}", total=None)
         result = execute(request, on_step=lambda t: progress.update(task, completed=t))
     metrics = write_run_folder(result, out, plot_formats if plots else ())
-    shown = {key: value for key, value in metrics.items() if not isinstance(value, dict)}
+    shown = {
+        key: value
+        for key, value in metrics.items()
+        if not isinstance(value, dict) and key != "warnings"
+    }
     typer.echo(dump_json(shown), nl=False)
+    for line in metrics["warnings"]:
+        typer.echo(f"warning: {line}", err=True)
     typer.echo(f"run folder: {out}")
 
 

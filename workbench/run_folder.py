@@ -153,6 +153,16 @@ def run_provenance(result: RunResult) -> dict[str, Any]:
     }
 
 
+def run_warnings(result: RunResult) -> list[str]:
+    """The degradations of this run (``workbench.degradations``): data the loader dropped
+    or repaired, sightings the estimator did not use as stated."""
+    from workbench.degradations import association_warnings, data_warnings
+
+    return data_warnings(result.sequence) + association_warnings(
+        result.estimate, result.sequence, result.request.estimator
+    )
+
+
 def write_run_folder(
     result: RunResult, out_dir: Path, plot_formats: tuple[str, ...] = ("png",)
 ) -> dict[str, Any]:
@@ -192,6 +202,7 @@ def write_run_folder(
     write_atomic(out_dir / "events.json", dump_json(events))
     save_run_consistency(estimate, result.sequence, out_dir / CONSISTENCY_FILE)
     metrics = compute_metrics(estimate, result.sequence)
+    metrics["warnings"] = run_warnings(result)
     metrics.update(run_provenance(result))
     if plot_formats:
         from workbench.plots import write_run_plots

@@ -114,6 +114,20 @@ class PairSummary:
     def errors(self) -> list[str]:
         return [f"seed {run.seed}: {run.error}" for run in self.runs if not run.finished]
 
+    def warnings(self) -> list[str]:
+        """The runs' warnings (``workbench.degradations``), each once, with the seeds it
+        came from when there are several runs."""
+        seeds: dict[str, list[int]] = {}
+        for run in self.runs:
+            for line in (run.metrics or {}).get("warnings") or ():
+                seeds.setdefault(str(line), []).append(run.seed)
+        if len(self.runs) <= 1:
+            return list(seeds)
+        return [
+            f"{line} (seed{'s' if len(found) > 1 else ''} {', '.join(map(str, found))})"
+            for line, found in seeds.items()
+        ]
+
 
 def _values(records: list[RunRecord], key: str) -> list[float]:
     found = []

@@ -113,14 +113,16 @@ def _shown_blocks(rows: list[PairSummary]) -> list[str]:
 
 
 def table_notes(rows: list[PairSummary], notes: list[str] = ()) -> list[str]:
-    """Notes under a table: the plan's notes, n/a pairs with the reason, failures, and the
-    rows whose causal columns are blank because the estimator has no causal estimate."""
+    """Notes under a table: the plan's notes, n/a pairs with the reason, failures, the runs'
+    warnings (dropped rows, sightings not used as stated), and the rows whose causal
+    columns are blank because the estimator has no causal estimate."""
     found = list(notes)
     for row in rows:
         if row.status == "n/a":
             found.append(f"n/a {row.dataset} / {row.estimator}: {row.reason}")
         for error in row.errors():
             found.append(f"failed {row.dataset} / {row.estimator} {error}")
+        found.extend(f"warning: {line}" for line in row.warnings())
         if "ate_rmse_smoothed_m" in row.stats and "ate_rmse_m" not in row.stats:
             found.append(
                 f"{row.dataset} / {row.estimator}: no causal estimate (a batch solution exists "
