@@ -35,12 +35,17 @@ Quirks handled (all counted in ``Sequence.metadata['counts']``):
   across +/-pi (runs of 1-5 samples). ``repair_heading_glitches`` replaces every run whose
   implied rate exceeds ``max_heading_rate_rad_s`` by the short-way interpolation between
   the good samples around it; the number of repaired samples is in the metadata.
-- *Swapped landmark labels*: barcodes 18 and 61 (subjects 11 and 17) are swapped with
-  respect to ``Landmark_Groundtruth.dat`` (the robots see barcode 18 where subject 17 is
-  surveyed). By default (``fix_swapped_labels=true``) the ground-truth map assigns
-  barcode 18 the position surveyed for subject 17 and barcode 61 that of subject 11, so
-  ``landmark_rmse_m`` measures the map, not the labelling error; with ``false`` the file's
-  labels are kept as they are. ``tests/test_utias.py`` checks the swap against the data.
+- *Swapped landmark labels*: in dataset 1 barcodes 18 and 61 (subjects 11 and 17) are
+  swapped with respect to ``Landmark_Groundtruth.dat`` (the robots see barcode 18 where
+  subject 17 is surveyed). The swap is detected from the data, not assumed
+  (``detect_label_swaps``: a pair of barcodes whose sightings, placed with the Vicon poses,
+  sit at each other's surveyed position), so another MRCLAM folder gets only the swaps its
+  own data show; ``fix_swapped_labels=false`` keeps the file's labels. The metadata says
+  which pairs were swapped.
+- *Vicon position glitches*: a position that jumps away faster than
+  ``max_vicon_speed_m_s`` is dropped from the truth (so no estimate is scored against it)
+  until the track returns; counted (``vicon_position_glitch_samples``) and timed
+  (``excluded_truth_s``).
 
 Ground truth: Vicon poses (heading repaired), world and body velocity by central
 differences of the Vicon positions (derived, not measured), the surveyed landmark map
@@ -69,9 +74,6 @@ from datasets.trajectory import Trajectory
 
 ROBOT_SUBJECTS = frozenset({1, 2, 3, 4, 5})
 """MRCLAM subjects 1-5 are the robots; their barcodes are not static landmarks."""
-
-SWAPPED_LABEL_SUBJECTS = (11, 17)
-"""Subjects whose survey labels are swapped in MRCLAM dataset 1 (barcodes 18 and 61)."""
 
 
 class UtiasOptions(BaseModel):
@@ -121,7 +123,13 @@ class UtiasOptions(BaseModel):
     )
     fix_swapped_labels: bool = Field(
         True,
-        description="ground truth: swap the survey positions of barcodes 18 and 61 (see module doc)",
+        description="ground truth: swap the survey positions of barcodes whose sightings (placed "
+        "with the Vicon poses) sit at each other's surveyed position (detected; dataset 1: 18 and 61)",
+    )
+    max_vicon_speed_m_s: float = Field(
+        2.0,
+        gt=0,
+        description="Vicon positions jumping away faster than this are glitches, excluded from the scoring",
     )
     max_heading_rate_rad_s: float = Field(
         3.0, gt=0, description="Vicon heading changes faster than this are glitches"
@@ -337,6 +345,16 @@ def load_mrclam(
         origin = min(odo_t[0], truth_t[0])
     odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
     odometry_model = _odometry_noise_model(config, odo_t, odo_values, truth_t, truth_values, name)
+    swaps: list[tuple[int, int]] = []
+    if config.fix_swapped_labels:
+        # on the whole recording, so that a short run gets the same map as the full one
+        every_scan, _, _ = _build_scans(sightings, meas_t, odo_t, subject_of, config)
+        full_heading, _ = repair_heading_glitches(
+            truth_values[:, 2], truth_t, config.max_heading_rate_rad_s
+        )
+        swaps = detect_label_swaps(
+            every_scan, truth_t, truth_values[:, :2], full_heading, subject_of, surveyed
+        )
     if config.duration_s is not None:
         keep = odo_t <= config.duration_s
         odo_t, odo_values = odo_t[keep], odo_values[keep]
@@ -358,8 +376,11 @@ def load_mrclam(
         truth_values[:, 2], truth_t, config.max_heading_rate_rad_s
     )
     counts["vicon_heading_samples_repaired"] = repaired
+    glitches = vicon_position_glitches(truth_t, truth_values[:, :2], config.max_vicon_speed_m_s)
+    counts["vicon_position_glitch_samples"] = int(glitches.sum())
+    good = ~glitches  # glitch samples leave the truth: no estimate pairs with them
     ground_truth = _ground_truth(
-        truth_t, truth_values[:, :2], heading, subject_of, surveyed, config, scan_ids
+        truth_t[good], truth_values[good, :2], heading[good], subject_of, surveyed, swaps, scan_ids
     )
 
     speeds = odo_values[:, 0] * config.odometry_speed_scale
@@ -420,9 +441,15 @@ def load_mrclam(
         else 0.0,
         "counts": {key: int(value) for key, value in counts.items()},
         "odometry_gaps": long_gaps,
-        "swapped_labels": "fixed (barcode 18 <-> 61 survey positions)"
-        if config.fix_swapped_labels
-        else "as in the file",
+        "swapped_labels": (
+            "as in the file"
+            if not config.fix_swapped_labels
+            else ", ".join(f"barcode {a} <-> {b} survey positions" for a, b in swaps)
+            or "none detected"
+        ),
+        "excluded_truth_s": float(np.sum(np.diff(truth_t)[glitches[1:]]))
+        if len(truth_t) > 1
+        else 0.0,
         "options": config.model_dump(),
         "scans": len(scans),
         "odometry_noise": None if odometry_model is None else odometry_model.as_dict(),
@@ -581,24 +608,78 @@ def _build_scans(
     return scans, tuple(scan_ids), counts
 
 
+def detect_label_swaps(
+    scans: list[LandmarkScan],
+    truth_t: np.ndarray,
+    truth_xy: np.ndarray,
+    heading: np.ndarray,
+    subject_of: dict[int, int],
+    surveyed: dict[int, np.ndarray],
+    min_sightings: int = 20,
+    tolerance_m: float = 0.5,
+) -> list[tuple[int, int]]:
+    """Pairs of barcodes whose sightings, placed in the world with the Vicon poses, sit at
+    each other's surveyed position (median within ``tolerance_m``) and more than
+    ``tolerance_m`` from their own: labels swapped in the survey (MRCLAM dataset 1: 18 and
+    61). Barcodes with fewer than ``min_sightings`` sightings are not judged."""
+    placed: dict[int, list[np.ndarray]] = {}
+    for scan in scans:
+        i = min(int(np.searchsorted(truth_t, scan.t)), len(truth_t) - 1)
+        rotation = rot2_batch(np.array([heading[i]]))[0]
+        for barcode, point in zip(scan.ids, scan.points):
+            placed.setdefault(int(barcode), []).append(truth_xy[i] + rotation @ point)
+    seen = {
+        barcode: np.median(np.array(points), axis=0)
+        for barcode, points in placed.items()
+        if len(points) >= min_sightings and subject_of.get(barcode) in surveyed
+    }
+    survey = {barcode: surveyed[subject_of[barcode]] for barcode in seen}
+    misplaced = sorted(b for b in seen if np.linalg.norm(seen[b] - survey[b]) > tolerance_m)
+    swaps = []
+    for index, first in enumerate(misplaced):
+        for second in misplaced[index + 1 :]:
+            if (
+                np.linalg.norm(seen[first] - survey[second]) < tolerance_m
+                and np.linalg.norm(seen[second] - survey[first]) < tolerance_m
+            ):
+                swaps.append((first, second))
+    return swaps
+
+
+def vicon_position_glitches(t: np.ndarray, xy: np.ndarray, max_speed_m_s: float) -> np.ndarray:
+    """(N,) bool: Vicon samples whose position jumps away from the last good sample faster
+    than ``max_speed_m_s`` (a lost or swapped marker: metres in a few samples), until the
+    track comes back within reach of that sample. Excluded from the scoring."""
+    bad = np.zeros(len(t), bool)
+    last = 0
+    for i in range(1, len(t)):
+        reach = max_speed_m_s * max(t[i] - t[last], 1e-9)
+        if np.linalg.norm(xy[i] - xy[last]) > reach + 0.05:  # 5 cm: Vicon jitter
+            bad[i] = True
+        else:
+            last = i
+    return bad
+
+
 def _ground_truth(
     t: np.ndarray,
     positions: np.ndarray,
     heading: np.ndarray,
     subject_of: dict[int, int],
     surveyed: dict[int, np.ndarray],
-    config: UtiasOptions,
+    swaps: list[tuple[int, int]],
     scan_ids: tuple[tuple[float, np.ndarray], ...],
 ) -> GroundTruth:
-    """Vicon poses, finite-difference velocities, surveyed map keyed by barcode."""
+    """Vicon poses, finite-difference velocities, surveyed map keyed by barcode with the
+    detected label ``swaps`` applied."""
     world_velocity = np.stack(
         [np.gradient(positions[:, 0], t), np.gradient(positions[:, 1], t)], axis=-1
     )
     body_velocity = np.einsum("nji,nj->ni", rot2_batch(heading), world_velocity)
     location = dict(surveyed)
-    if config.fix_swapped_labels and all(s in location for s in SWAPPED_LABEL_SUBJECTS):
-        first, second = SWAPPED_LABEL_SUBJECTS
-        location[first], location[second] = surveyed[second], surveyed[first]
+    for first, second in swaps:
+        a, b = subject_of[first], subject_of[second]
+        location[a], location[b] = surveyed[b], surveyed[a]
     barcode_of = {subject: barcode for barcode, subject in subject_of.items()}
     ids = np.array(
         sorted(barcode_of[s] for s in location if s in barcode_of and s not in ROBOT_SUBJECTS),

@@ -244,3 +244,46 @@ def test_irregular_printed_times_gap_and_duplicate_rows(tmp_path: Path) -> None:
     stream = list(sequence.measurements())
     assert stream[0].t == pytest.approx(0.0)
     assert sum(isinstance(m, Odometry) for m in stream) == 30
+
+
+def test_vicon_position_glitch_is_detected_and_leaves_the_truth(tmp_path: Path) -> None:
+    odometry = grid_odometry(200)
+    folder = write_folder(tmp_path / "d", odometry, ["0.10 72 2.0 0.1"])
+    truth_file = folder / "Robot1_Groundtruth.dat"
+    rows = truth_file.read_text().splitlines()
+    data = [i for i, line in enumerate(rows) if line.strip() and not line.startswith("#")]
+    for i in data[100:104]:  # a marker swap: the track jumps 3 m for four samples
+        t, x, y, h = rows[i].split()
+        rows[i] = f"{t} {float(x) + 3.0} {y} {h}"
+    truth_file.write_text("\n".join(rows) + "\n")
+    sequence = load_mrclam(folder, 1, UtiasOptions(odometry_noise="white"))
+    assert sequence.metadata["counts"]["vicon_position_glitch_samples"] == 4
+    assert sequence.metadata["excluded_truth_s"] == pytest.approx(4 * 0.02)
+    pose = sequence.ground_truth.pose
+    assert len(pose.t) == 200 - 4 and np.all(np.abs(np.diff(pose.positions[:, 0])) < 0.5)
+
+
+def test_label_swaps_are_detected_from_the_sightings_not_assumed() -> None:
+    from datasets.utias import detect_label_swaps
+
+    truth_t = np.arange(50) * 0.1
+    truth_xy = np.zeros((50, 2))
+    heading = np.zeros(50)
+    surveyed = {11: np.array([2.0, 0.0]), 17: np.array([0.0, 3.0]), 12: np.array([-2.0, 1.0])}
+    subject_of = {18: 11, 61: 17, 9: 12}
+    # barcode 18 is seen where subject 17 stands, 61 where 11 stands, 9 where it should be
+    scans = [
+        LandmarkScan(
+            t=float(t),
+            points=np.array([[0.0, 3.0], [2.0, 0.0], [-2.0, 1.0]]),
+            covariances=np.repeat(np.eye(2)[None] * 0.01, 3, axis=0),
+            ids=np.array([18, 61, 9]),
+        )
+        for t in truth_t
+    ]
+    assert detect_label_swaps(scans, truth_t, truth_xy, heading, subject_of, surveyed) == [(18, 61)]
+    honest = [
+        LandmarkScan(t=s.t, points=s.points[[1, 0, 2]], covariances=s.covariances, ids=s.ids)
+        for s in scans
+    ]
+    assert detect_label_swaps(honest, truth_t, truth_xy, heading, subject_of, surveyed) == []

@@ -148,6 +148,8 @@ def run_provenance(result: RunResult) -> dict[str, Any]:
         "estimator_label": estimator_label,
         "seed": request.seed,
         "reference_source": result.sequence.metadata.get("reference_source"),
+        # truth the loader excluded from the scoring (e.g. Vicon glitches) [s]
+        "excluded_truth_s": result.sequence.metadata.get("excluded_truth_s"),
         "git_revision": git_revision(),
         "package_versions": package_versions(),
     }
