@@ -32,6 +32,9 @@ class NoiseSpec:
         odometry: the planar odometry noise model the odometry covariances were built from
             (``datasets.odometry_noise``; it also gives the lateral variance that a velocity
             sample's (v, omega) covariance cannot carry), or None.
+        landmark_field_of_view_deg: horizontal field of view of the landmark sensor,
+            centred on the body x axis [deg] (a landmark outside it cannot be seen).
+        landmark_range_m: the landmark sensor's maximum range [m].
         rate_hz: nominal sample rate of each sensor.
     """
 
@@ -44,6 +47,8 @@ class NoiseSpec:
     landmark_sigma_m: float | None = None
     gps_sigma_m: float | None = None
     odometry: OdometryNoiseModel | None = None
+    landmark_field_of_view_deg: float | None = None
+    landmark_range_m: float | None = None
     rate_hz: dict[str, float] = field(default_factory=dict)
 
 

@@ -392,9 +392,15 @@ def load_mrclam(
             np.column_stack([speeds * step, np.zeros(len(speeds)), odo_values[:, 1] * step]),
             np.full(len(speeds), step),
         )
+    bearings = np.abs(sightings.values[:, 3])
     noise = NoiseSpec(
         gyro_noise_density=gyro_density,
         odometry=odometry_model,
+        # the camera's: the widest bearing and longest range among the sightings
+        landmark_field_of_view_deg=float(np.rad2deg(2.0 * bearings.max()))
+        if len(bearings)
+        else None,
+        landmark_range_m=float(sightings.values[:, 2].max()) if len(bearings) else None,
         rate_hz={"odometry": 1.0 / step, "gyro": 1.0 / step},
     )
     start_velocity = ground_truth.history.block(BlockName.VELOCITY).values[0]

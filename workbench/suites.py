@@ -342,7 +342,13 @@ def restrict(
             raise InputError(
                 f"suite '{suite.name}' has no {kind} {', '.join(unknown)} (it has: {', '.join(spec.title for spec in specs)})"
             )
-        return tuple(spec for spec in specs if spec.name in wanted or spec.title in wanted)
+        titles = {spec.title for spec in specs}
+
+        def chosen(spec) -> bool:
+            # a title picks that spec only; a name without a spec titled so picks all of it
+            return spec.title in wanted or (spec.name in wanted and spec.name not in titles)
+
+        return tuple(spec for spec in specs if chosen(spec))
 
     return replace(
         suite,

@@ -257,9 +257,15 @@ def _kitti_inertial_noise(options: _SpatialOptions) -> InertialNoise:
 
 
 def _noise_spec(
-    noise: InertialNoise, landmark_sigma_m: float, rates: dict[str, float], planar: bool
+    noise: InertialNoise,
+    landmark_sigma_m: float,
+    rates: dict[str, float],
+    planar: bool,
+    options: _CommonOptions,
 ) -> NoiseSpec:
     return NoiseSpec(
+        landmark_field_of_view_deg=options.fov_deg,
+        landmark_range_m=options.range_m,
         gyro_noise_density=noise.gyro_noise_density,
         accel_noise_density=None if planar else noise.accel_noise_density,
         gyro_bias_walk=noise.gyro_bias_walk,
@@ -332,7 +338,7 @@ def _simulate_spatial(
     )
     rates = {"imu": options.imu_rate_hz, "landmarks": options.landmark_rate_hz}
     noise = _noise_spec(
-        nominal.scaled(stated), float(np.mean(sigmas)) * stated, rates, planar=False
+        nominal.scaled(stated), float(np.mean(sigmas)) * stated, rates, False, options
     )
     metadata = _metadata(
         scenario,
@@ -587,7 +593,7 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     )
     rates = {"gyro": options.gyro_rate_hz, "landmarks": options.landmark_rate_hz}
     noise = _noise_spec(
-        nominal.scaled(stated), laser.near_range_sigma_m * stated, rates, planar=True
+        nominal.scaled(stated), laser.near_range_sigma_m * stated, rates, True, options
     )
     metadata = _metadata(
         "guerreiro-loop",

@@ -88,8 +88,12 @@ class SensorBasedConfig(AssociationOptions, RecordingOptions):
     in_view_range_m: float = Field(
         5.0, gt=0, description="landmarks predicted within this range should be seen [m]"
     )
-    field_of_view_deg: float = Field(
-        360.0, gt=0, le=360, description="sensor horizontal field of view [deg]"
+    field_of_view_deg: float | None = Field(
+        None,
+        gt=0,
+        le=360,
+        description="landmark sensor's horizontal field of view [deg] (a landmark outside it is not "
+        "missed); None: the dataset's stated one (360 if it states none)",
     )
     max_missed_in_view: int = Field(
         100, ge=1, description="consecutive in-view misses before deletion"
@@ -122,6 +126,18 @@ class SensorBasedConfig(AssociationOptions, RecordingOptions):
     loop_unambiguous_only: bool = Field(
         True,
         description="reject a loop closure when a second, disjoint constellation match of min_pairs pairs exists",
+    )
+    use_odometry: bool | None = Field(
+        None,
+        description="odometry (where the dataset has it) as a body-velocity measurement: an "
+        "extension beyond the paper, which uses the gyro and landmarks only; None: on when the "
+        "dataset has odometry; false: the paper's gyro-only form",
+    )
+    odometry_lateral_sigma_m_s: float = Field(
+        0.05,
+        gt=0,
+        description="lateral velocity std of a velocity odometry sample when the dataset states "
+        "no odometry noise model (a unicycle's odometry says nothing across) [m/s]",
     )
     earth_frame: bool = Field(
         True,

