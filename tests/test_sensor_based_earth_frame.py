@@ -1,0 +1,84 @@
+"""The sensor-based filter's Earth-frame trajectory: increments from consecutive body-frame
+maps, anchored on the Earth map of well-known landmarks; and the filter's use of odometry
+and of the landmark sensor's stated field of view."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datasets.rotations import rot2
+from filters.sensor_based.earth_frame import EarthFrameTracker
+
+WORLD = np.array([[5.0, 0.0], [5.0, 3.0], [0.0, 6.0], [-4.0, 2.0], [-3.0, -4.0], [2.0, -5.0]])
+
+
+def _body(world: np.ndarray, heading: float, position: np.ndarray) -> np.ndarray:
+    return (world - position) @ rot2(heading)  # rows R^T (l - p)
+
+
+def _drive(map_sigma_m: float, bias_rad: float = 0.01) -> list[tuple[float, np.ndarray]]:
+    """A full turn on a circle seeing every landmark at every step, with maps whose
+    consecutive increments carry a small rotation error (the drift of composition)."""
+    tracker = EarthFrameTracker(2, np.eye(2), np.zeros(2), map_sigma_m=map_sigma_m)
+    poses = []
+    steps = 60
+    covariances = np.repeat(np.eye(2)[None] * 0.01**2, len(WORLD), axis=0)
+    for k in range(steps + 1):
+        heading = 2 * np.pi * k / steps
+        position = np.array([np.sin(heading), 1 - np.cos(heading)])
+        seen = _body(WORLD, heading, position)
+        # the filter's map drifts: each snapshot rotated a little more about the body
+        seen = seen @ rot2(bias_rad * k).T
+        tracker.step(np.arange(len(WORLD)), seen, covariances, np.eye(2), np.zeros(2))
+        poses.append((heading, tracker.position.copy()))
+    return poses
+
+
+def test_anchoring_on_the_earth_map_removes_the_drift_of_composed_increments() -> None:
+    anchored = _drive(map_sigma_m=0.2)
+    composed = _drive(map_sigma_m=1e-9)  # nothing is ever well-known: increments only
+    truth = np.array([[np.sin(h), 1 - np.cos(h)] for h, _ in anchored])
+    error_anchored = np.linalg.norm(np.array([p for _, p in anchored]) - truth, axis=1)
+    error_composed = np.linalg.norm(np.array([p for _, p in composed]) - truth, axis=1)
+    # the drift is a common rotation of the map: composition follows it, the Earth map
+    # (entered at the first step) does not
+    assert error_composed[-1] > 10 * error_anchored[-1]
+    assert error_anchored.max() < 0.2
+
+
+def test_sensor_based_uses_odometry_as_a_velocity_measurement_and_says_so() -> None:
+    from datasets.victoria_park import default_path, load
+    from filters.sensor_based.config import SensorBasedConfig
+    from filters.sensor_based.filter import SensorBasedSlam
+
+    if not default_path().is_file():
+        pytest.skip("gtsam's victoria_park.txt absent")
+    sequence = load(None, 0, {"max_steps": "300"})
+    results = {}
+    for use in (True, False):
+        estimator = SensorBasedSlam(SensorBasedConfig(use_odometry=use), sequence)
+        for measurement in sequence.measurements():
+            estimator.process(measurement)
+        results[use] = estimator.estimate()
+    with_odometry, without = results[True], results[False]
+    assert any("odometry used as a body-velocity measurement" in n for n in with_odometry.notes)
+    assert not any("odometry used" in n for n in without.notes)
+    updates = with_odometry.diagnostics.extras["odometry_velocity_nis"]
+    assert len(updates) == 300 and "odometry_velocity_nis" not in without.diagnostics.extras
+    # the landmark NIS is the landmarks' alone either way (same number of scans)
+    assert len(with_odometry.diagnostics.scan_nis) == len(without.diagnostics.scan_nis)
+
+
+def test_the_landmark_sensor_field_of_view_is_stated_and_used() -> None:
+    from datasets.simulation.scenarios import load_scenario
+    from filters.sensor_based.config import SensorBasedConfig
+    from filters.sensor_based.filter import SensorBasedSlam
+
+    sequence = load_scenario("guerreiro-loop", 0, {"duration_s": "2", "fov_deg": "180"})
+    assert sequence.noise.landmark_field_of_view_deg == 180.0
+    assert sequence.noise.landmark_range_m == 30.0
+    stated = SensorBasedSlam(SensorBasedConfig(), sequence)
+    assert stated.manager.policy.field_of_view_deg == 180.0
+    chosen = SensorBasedSlam(SensorBasedConfig(field_of_view_deg=90), sequence)
+    assert chosen.manager.policy.field_of_view_deg == 90.0
