@@ -201,6 +201,14 @@ class KeyframeSmoother:
         stride = self.config.keyframe_imu_stride
         if stride and self.motion.since_keyframe() >= stride and t > self.keyframe_t[-1]:
             self._open_group(t)
+        bridge = self.bridge_interval_s()
+        if bridge is not None and t - self.keyframe_t[-1] >= bridge:
+            self._open_group(t)
+
+    def bridge_interval_s(self) -> float | None:
+        """The longest stretch without a keyframe [s] (None: no limit); a mode whose window
+        must not run empty says how long."""
+        return None
 
     def _open_group(self, t: float) -> _Group:
         if self.group is None:

@@ -44,10 +44,12 @@ class WindowExports:
         keyframe_t: list[float],
         landmarks: list[MapLandmark],
         t: float,
+        departed: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> None:
         """Record the keyframes and ``landmarks`` whose variables are among the ``leaving``
         keys of ``backend``, with marginals from one joint query (``t`` [s]: the update's
-        time, for errors)."""
+        time, for errors); the departing landmarks' marginals also go to ``departed`` (map
+        id -> (position, covariance)), from which a returning landmark gets its prior."""
         pose_keys = {self.motion.pose_key(k): k for k in self._keyframes_in(leaving)}
         keyframes = sorted(k for key, k in pose_keys.items() if k not in self.keyframes)
         leaving_set = set(leaving)
@@ -69,6 +71,8 @@ class WindowExports:
                     np.asarray(read(landmark.key), dtype=float),
                     marginals.marginalCovariance(landmark.key),
                 )
+                if departed is not None:
+                    departed[landmark.map_id] = self.landmarks[landmark.map_id]
 
     @staticmethod
     def _keyframes_in(keys: list[int]) -> list[int]:

@@ -116,6 +116,18 @@ def landmark_prior(
     return gtsam.PriorFactorPoint2(landmark_key, position, noise)
 
 
+def landmark_marginal_prior(
+    landmark_key: int, position: np.ndarray, covariance: np.ndarray
+) -> gtsam.NonlinearFactor:
+    """A landmark's marginal (position and full covariance) as a prior, 2-D or 3-D: how the
+    fixed-lag smoother brings back a landmark that left its window."""
+    position = np.asarray(position, dtype=float)
+    noise = gtsam.noiseModel.Gaussian.Covariance(np.asarray(covariance, dtype=float))
+    if position.size == 3:
+        return gtsam.PriorFactorPoint3(landmark_key, position, noise)
+    return gtsam.PriorFactorPoint2(landmark_key, position, noise)
+
+
 def check_measurement_covariance(covariance: np.ndarray, t: float, index: int) -> None:
     """``InputError`` unless the per-point covariance is finite, symmetric and PD."""
     if not np.all(np.isfinite(covariance)):

@@ -35,6 +35,7 @@ from smoothers.landmark_book import LandmarkBook, MapLandmark
 from smoothers.landmark_factors import (
     MIN_RANGE_M,
     check_measurement_covariance,
+    landmark_marginal_prior,
     landmark_prior,
     point_factor,
 )
@@ -78,6 +79,8 @@ class LandmarkScans:
         self.backend = backend
         self.pending = pending
         self.book = LandmarkBook()
+        # map id -> (position, covariance) of landmarks that left a fixed-lag window
+        self.departed: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.first_sightings: dict[int, tuple[int, np.ndarray]] = {}
 
     # ------------------------------------------------------------------ the map
@@ -266,4 +269,11 @@ class LandmarkScans:
             self.pending.add(
                 landmark_prior(landmark.key, landmark.anchor_position, self.config.anchor_sigma_m)
             )
+        elif map_id in self.departed:
+            # back after leaving the fixed-lag window: its marginal at departure as a prior,
+            # so the loop closes (an approximation: the marginal's correlation with the
+            # states still in the window is dropped, which makes the closure optimistic)
+            position, covariance = self.departed.pop(map_id)
+            self.pending.add(landmark_marginal_prior(landmark.key, position, covariance))
+            self.recorder.event(scan.t, "landmark_returned", map_id=map_id)
         return landmark

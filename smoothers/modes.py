@@ -163,14 +163,28 @@ class SmootherFixedLag(KeyframeSmoother):
         leaving = self.backend.leaving(t_new)
         if leaving:
             landmarks = list(self.landmarks.values())
-            self.exports.export(self.backend, leaving, self.keyframe_t, landmarks, t_new)
+            self.exports.export(
+                self.backend, leaving, self.keyframe_t, landmarks, t_new, self.scans.departed
+            )
+
+    def bridge_interval_s(self) -> float | None:
+        """Keyframes at least every half window on motion alone: a stretch without
+        landmarks longer than ``lag_s`` would otherwise leave the window empty of the
+        keyframe the next one must connect to."""
+        return 0.5 * self.config.lag_s
 
     def _update(self, t: float) -> None:
         latest = self.keyframe_t[-1]
         if len(self.keyframe_t) > 1 and latest - self.keyframe_t[-2] >= self.config.lag_s:
             raise InputError(
-                f"fixed lag: keyframes at t={self.keyframe_t[-2]:.3f} and {latest:.3f} s are further apart than lag_s={self.config.lag_s}"
+                f"fixed lag: keyframes at t={self.keyframe_t[-2]:.3f} and {latest:.3f} s are "
+                f"further apart than lag_s={self.config.lag_s} (no motion input in between)"
             )
+        if self.config.keep_map:
+            # re-stamp the map with the newest time: the window slides over states only
+            for landmark in self.landmarks.values():
+                if self.backend.contains(landmark.key) or self.pending.holds(landmark.key):
+                    self.pending.touch(landmark.key, t)
         super()._update(t)
 
     def estimate(self) -> Estimate:

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import gtsam
 import numpy as np
+import pytest
 from gtsam.symbol_shorthand import X
 
+from datasets.measurements import LandmarkScan
 from smoothers.backends import FixedLagBackend
 from smoothers.modes import SmootherFixedLag, SmootherIsam2
 from workbench.metrics.consistency import nees
@@ -147,3 +149,31 @@ def test_3d_relative_pose_odometry_factors_tighten_the_trajectory():
     helped_var = np.trace(helped.smoothed.pose.covariances[-1][3:, 3:])
     assert helped_var < plain_var
     assert _position_rmse(helped.smoothed, sequence) < 0.2
+
+
+def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
+    """Victoria Park's first 1000 steps have stretches without landmarks longer than the
+    5 s window: keyframes on motion alone bridge them. With the map kept in the window a
+    landmark seen again is the same variable; with keep_map=false it comes back from its
+    departure marginal (an event per return)."""
+    from datasets.victoria_park import default_path
+
+    if not default_path().is_file():
+        pytest.skip("gtsam's victoria_park.txt absent")
+    sequence = load_dataset("victoria-park", 0, {"max_steps": "1000"})
+    scan_times = np.array([m.t for m in sequence.measurements() if isinstance(m, LandmarkScan)])
+    assert np.max(np.diff(scan_times)) > 5.0  # the gap the window must bridge
+    kept = SmootherFixedLag(SmootherFixedLag.Config(), sequence)
+    for measurement in sequence.measurements():
+        kept.process(measurement)
+    estimate = kept.estimate()
+    assert np.max(np.diff(kept.keyframe_t)) <= 2.5 + 0.2 + 1e-9  # half the window + a step
+    returns = [e for e in estimate.diagnostics.events if e.kind == "landmark_returned"]
+    assert returns == []
+    seen = {int(i) for _, ids in sequence.ground_truth.scan_ids for i in ids}
+    assert len(estimate.landmarks) == len(seen)
+    leaving = SmootherFixedLag(SmootherFixedLag.Config(keep_map=False), sequence)
+    for measurement in sequence.measurements():
+        leaving.process(measurement)
+    returned = [e for e in leaving.estimate().diagnostics.events if e.kind == "landmark_returned"]
+    assert len(returned) > 0

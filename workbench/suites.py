@@ -148,14 +148,6 @@ ALL_ESTIMATORS: tuple[EstimatorSpec, ...] = (
 )
 
 
-# Victoria Park has stretches of up to 12.6 s without a landmark (no keyframe): the
-# fixed-lag window must span them, or the smoother would marginalize the last keyframe
-# before the next one connects to it.
-VICTORIA_PARK_OPTIONS: tuple[tuple[str, Options], ...] = (
-    ("smoother-fixed-lag", (("lag_s", "15"),)),
-)
-
-
 def write_corridor_bag(path: Path) -> None:
     """The synthetic lidar corridor as a ROS 1 bag at ``path`` (seed 0, default options),
     with its corner sidecar beside it.
@@ -203,7 +195,6 @@ SUITES: dict[str, Suite] = {
                     "victoria-park",
                     (("max_steps", "1000"),),
                     seeded=False,
-                    estimator_options=VICTORIA_PARK_OPTIONS,
                 ),
                 DatasetSpec("kitti-imu-gps", (("duration_s", "60"),), seeded=False),
             ),
@@ -225,7 +216,6 @@ SUITES: dict[str, Suite] = {
                     (("ids", "false"),),
                     label="victoria-park (ids=false)",
                     seeded=False,
-                    estimator_options=VICTORIA_PARK_OPTIONS,
                 ),
                 DatasetSpec("kitti-imu-gps", seeded=False),
                 DatasetSpec(
