@@ -79,6 +79,12 @@ def test_filter_closes_the_loop_after_losing_sight_of_its_landmarks() -> None:
     strict = config.model_copy(update={"loop_max_old_sigma_m": 1.5})
     _, estimate = run(SensorBasedSlam, strict, sequence)
     assert not [event for event in estimate.diagnostics.events if event.kind == "loop_closure"]
+    # With ids the association closes the loop: every sighting pairs with its id's landmark
+    # wherever it is, and the geometric search (which ignores ids) does not run
+    by_ids = config.model_copy(update={"association": "ids"})
+    estimator, estimate = run(SensorBasedSlam, by_ids, sequence)
+    assert not [event for event in estimate.diagnostics.events if event.kind == "loop_closure"]
+    assert len(estimator.state.landmark_ids()) == len(LANDMARKS)
 
 
 def test_weighted_rigid_alignment_recovers_a_known_motion() -> None:

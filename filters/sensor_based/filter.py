@@ -399,7 +399,15 @@ class SensorBasedSlam:
             self.manager.removed(doomed)
             for landmark_id in doomed:
                 self.source_of.pop(landmark_id, None)
-        if self.config.loop_closing and t - self._last_loop_search >= self.loop_policy.every_s:
+        # With ids the association itself closes a loop (a sighting pairs with the landmark
+        # of its id wherever it is in the map); the geometric search of section IV-C is for
+        # scans without ids (with ids it merged landmarks by layout against their ids:
+        # pair precision 0.2-0.4 on UTIAS)
+        if (
+            self.config.loop_closing
+            and self.policy.mode(scan.ids, t) != "ids"
+            and t - self._last_loop_search >= self.loop_policy.every_s
+        ):
             self._last_loop_search = t
             self._close_loops(t)
         self.scan_count += 1
