@@ -210,6 +210,8 @@ SUITES: dict[str, Suite] = {
                     "sim:guerreiro-loop",
                     (("ids", "false"),),
                     label="sim:guerreiro-loop (ids=false)",
+                    # the paper's own filter tuning, on the laser's own noise
+                    estimator_options=(("sensor-based", (("tuning", "paper"),)),),
                 ),
                 DatasetSpec(
                     "victoria-park",

@@ -12,6 +12,12 @@ from datasets.estimator_options import AssociationOptions, RecordingOptions
 
 DEG = math.pi / 180.0
 
+PAPER_BEARING_SIGMA_RAD = 3.75 * DEG
+"""Guerreiro et al. (2013), section V: sigma_alpha of the filter's laser model."""
+PAPER_RANGE_SIGMA_M = (0.15, 0.25)
+"""Section V: sigma_rho up to ``PAPER_RANGE_SWITCH_M``, and beyond."""
+PAPER_RANGE_SWITCH_M = 10.0
+
 
 class SensorBasedConfig(AssociationOptions, RecordingOptions):
     """Options of the sensor-based filter (defaults: the paper's section V where it gives one;
@@ -126,6 +132,13 @@ class SensorBasedConfig(AssociationOptions, RecordingOptions):
     loop_unambiguous_only: bool = Field(
         True,
         description="reject a loop closure when a second, disjoint constellation match of min_pairs pairs exists",
+    )
+    tuning: Literal["stated", "paper"] = Field(
+        "stated",
+        description="landmark measurement noise: 'stated' the scans' own covariances (the sensor "
+        "model the data states); 'paper' the paper's section V laser tuning (sigma_alpha = 3.75 deg, "
+        "sigma_rho = 0.15 m to 10 m and 0.25 m beyond, first order at the measured range and "
+        "bearing; 2-D only), a conservative tuning for a Hokuyo UTM-30LX",
     )
     use_odometry: bool | None = Field(
         None,

@@ -65,13 +65,19 @@ from datasets.measurements import (
     Odometry,
     Sensor,
 )
+from datasets.range_bearing import first_order_covariance
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, so3_exp
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
 from datasets.stream_clock import StreamClock
 from filters import kalman
 from filters.association import AssociationPolicy, Decision, Reason, ScanAssociation
-from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.config import (
+    PAPER_BEARING_SIGMA_RAD,
+    PAPER_RANGE_SIGMA_M,
+    PAPER_RANGE_SWITCH_M,
+    SensorBasedConfig,
+)
 from filters.sensor_based.directions import direction_covariance, match_direction
 from filters.sensor_based.dynamics import ProcessNoise, propagate_in_place, rate_dimension
 from filters.sensor_based.earth_frame import EarthFrameTracker
@@ -83,6 +89,18 @@ from filters.sensor_based.loop_closing import (
 )
 from filters.sensor_based.state import FilterState, LandmarkPredictor
 from filters.sensor_based.update import selection_update
+
+
+def paper_laser_covariances(points: np.ndarray) -> np.ndarray:
+    """The paper's laser model (section V) for body-frame points (k, 2): the first-order
+    covariance of range ``sigma_rho`` and bearing ``sigma_alpha`` at the measured range and
+    bearing (``datasets.range_bearing``; the printed ``Theta_p`` is not a covariance, see
+    there), shape (k, 2, 2)."""
+    ranges = np.linalg.norm(points, axis=1)
+    bearings = np.arctan2(points[:, 1], points[:, 0])
+    near, far = PAPER_RANGE_SIGMA_M
+    range_sigma = np.where(ranges <= PAPER_RANGE_SWITCH_M, near, far)
+    return first_order_covariance(ranges, bearings, range_sigma, PAPER_BEARING_SIGMA_RAD)
 
 
 class SensorBasedSlam:
@@ -103,6 +121,10 @@ class SensorBasedSlam:
         density = config.gyro_noise_density
         if density is None:
             density = sequence.noise.gyro_noise_density or 0.0
+        if config.tuning == "paper" and d != 2:
+            raise InputError(
+                f"{sequence.name}: tuning=paper is the paper's planar laser model (2-D datasets)"
+            )
         velocity_walk = per_body_axis(config.sigma_velocity_m_s, d, "sigma_velocity_m_s")
         self.noise = ProcessNoise(
             velocity_m_s=velocity_walk,
@@ -354,6 +376,8 @@ class SensorBasedSlam:
             raise InputError(
                 f"{self.name}: scan at t={scan.t:.6f} s has {points.shape[0]} points but {covs.shape[0]} covariances"
             )
+        if self.config.tuning == "paper":
+            covs = paper_laser_covariances(points)
         if self.rate is None:
             self.skipped["scan_without_rate"] += 1
         self._propagate_to(scan.t)
