@@ -39,6 +39,27 @@ COMMAND_MODULES: tuple[str, ...] = (
     "workbench.commands.calibrate_noise",
 )
 
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import version
+
+        typer.echo(f"workbench {version('slam-workbench')}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main_options(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="print the version and exit"
+        ),
+    ] = False,
+) -> None:
+    """Compare SLAM filters and smoothers on the same measurements."""
+
+
 SetOption = Annotated[
     list[str] | None, typer.Option("--set", help="estimator option key=value (repeatable)")
 ]
@@ -160,6 +181,60 @@ def run_command(
     for line in metrics["warnings"]:
         typer.echo(f"warning: {line}", err=True)
     typer.echo(f"run folder: {out}")
+
+
+@app.command("rerun")
+def rerun_command(
+    run_dir: Annotated[Path, typer.Argument(help="a run folder (its config.yaml)")],
+    out: Annotated[Path, typer.Option("--out", help="run folder to write")],
+    plots: Annotated[bool, typer.Option("--plots/--no-plots", help="write figures")] = True,
+) -> None:
+    """Run again what a run folder's config.yaml records: estimator, dataset, seed, data
+    options and the resolved estimator options."""
+    from workbench.run_folder import write_run_folder
+    from workbench.runner import RUN_CONFIG_KEYS, RunRequest, execute
+
+    config_file = Path(run_dir) / "config.yaml"
+    if not config_file.is_file():
+        raise InputError(f"{run_dir}: not a run folder (no config.yaml)")
+    import yaml
+
+    try:
+        recorded = yaml.safe_load(config_file.read_text(encoding="utf-8")) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as error:
+        raise InputError(
+            f"{config_file}: not a readable config.yaml ({type(error).__name__})"
+        ) from None
+    if not isinstance(recorded, dict) or not RUN_CONFIG_KEYS <= set(recorded):
+        raise InputError(
+            f"{config_file}: not a run folder's config.yaml (needs {sorted(RUN_CONFIG_KEYS)})"
+        )
+    request = RunRequest(
+        estimator=str(recorded["estimator"]),
+        dataset=str(recorded["dataset"]),
+        seed=int(recorded["seed"]),
+        config_file=config_file,
+        data_options=tuple(
+            (str(k), str(v)) for k, v in (recorded.get("data_options") or {}).items()
+        ),
+    )
+    metrics = write_run_folder(execute(request), out, ("png",) if plots else ())
+    for line in metrics["warnings"]:
+        typer.echo(f"warning: {line}", err=True)
+    typer.echo(f"run folder: {out}")
+
+
+@app.command("config")
+def config_command(
+    estimator: Annotated[str, typer.Argument(help="estimator name (see `workbench list`)")],
+) -> None:
+    """Print an estimator's default options as YAML (edit it, pass it with --config)."""
+    import yaml
+
+    from workbench.registry import estimator_entry
+
+    defaults = estimator_entry(estimator).load().Config()
+    typer.echo(yaml.safe_dump(defaults.model_dump(mode="json"), sort_keys=False), nl=False)
 
 
 _registered: set[str] = set()

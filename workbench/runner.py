@@ -22,13 +22,18 @@ from datasets.options import build_model, yaml_value
 from datasets.sequence import Sequence
 from workbench.registry import estimator_entry, load_dataset
 
+RUN_CONFIG_KEYS = frozenset({"estimator", "dataset", "seed", "config"})
+"""The keys that make a YAML file a run folder's ``config.yaml`` (``run_folder``)."""
+
 
 def resolve_config(
     estimator_class: type[Estimator],
     config_file: Path | None = None,
     overrides: dict[str, str] | None = None,
 ) -> BaseModel:
-    """The estimator's config: class defaults, then the YAML file, then ``--set`` overrides."""
+    """The estimator's config: class defaults, then the YAML file (estimator options, or a
+    run folder's ``config.yaml``, whose resolved options it takes), then ``--set``
+    overrides."""
     values: dict[str, Any] = {}
     if config_file is not None:
         config_file = Path(config_file)
@@ -42,6 +47,9 @@ def resolve_config(
             ) from None
         if not isinstance(loaded, dict):
             raise InputError(f"{config_file}: expected a mapping of option: value")
+        if RUN_CONFIG_KEYS <= set(loaded):
+            # a run folder's config.yaml: its resolved estimator options
+            loaded = loaded["config"] or {}
         values.update(loaded)
     for key, text in (overrides or {}).items():
         values[key] = yaml_value(text)
