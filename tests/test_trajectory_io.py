@@ -72,3 +72,18 @@ def test_missing_file_is_input_error(tmp_path):
 def test_trajectory_rejects_inconsistent_shapes():
     with pytest.raises(ValueError, match="disagree"):
         Trajectory(np.zeros(3), np.zeros((2, 3)), np.zeros((3, 4)))
+
+
+def test_atomic_writes_get_the_mode_the_umask_gives(tmp_path) -> None:
+    import os
+    import stat
+
+    from datasets.trajectory_io import write_atomic
+
+    previous = os.umask(0o022)
+    try:
+        path = write_atomic(tmp_path / "out.txt", "x")
+    finally:
+        os.umask(previous)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644
+    assert not list(tmp_path.glob(".*.tmp"))
