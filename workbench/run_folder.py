@@ -166,57 +166,65 @@ def run_warnings(result: RunResult) -> list[str]:
 
 
 def write_run_folder(
-    result: RunResult, out_dir: Path, plot_formats: tuple[str, ...] = ("png",)
+    result: RunResult,
+    out_dir: Path,
+    plot_formats: tuple[str, ...] = ("png",),
+    extra_files: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Write the run folder for ``result`` (figures in each of ``plot_formats``, none when
-    empty) and return its metrics dictionary."""
+    empty; ``extra_files``: name -> JSON content, e.g. a sweep's request) and return its
+    metrics dictionary. The folder is replaced as a whole (``workbench.folder_swap``):
+    killed at any moment, ``out_dir`` holds the complete earlier run or the complete new
+    one."""
+    from workbench.folder_swap import replaced_as_a_whole
     from workbench.metrics.summary import compute_metrics
 
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / METRICS_FILE).unlink(missing_ok=True)  # a stale marker must not outlive a rerun
-    request = result.request
-    resolved = {
-        "estimator": request.estimator,
-        "dataset": result.sequence.name,
-        "seed": request.seed,
-        "data_options": dict(request.data_options),
-        "dataset_metadata": result.sequence.metadata,
-        "config": result.config.model_dump(mode="json"),
-    }
-    write_atomic(out_dir / "config.yaml", yaml.safe_dump(resolved, sort_keys=True))
-    estimate = result.estimate
-    if estimate.causal.pose is not None:
-        write_tum(out_dir / "estimate.tum", estimate.causal.pose)
-    if estimate.smoothed is not None and estimate.smoothed.pose is not None:
-        write_tum(out_dir / "estimate_smoothed.tum", estimate.smoothed.pose)
-    truth = result.sequence.ground_truth
-    if truth is not None and truth.pose is not None:
-        write_tum(out_dir / "reference.tum", truth.pose)
-    save_npz_atomic(out_dir / "estimate.npz", estimate_arrays(estimate))
-    events = {
-        "notes": list(estimate.notes),
-        "events": [
-            {"t": event.t, "kind": event.kind, **event.details}
-            for event in estimate.diagnostics.events
-        ],
-    }
-    write_atomic(out_dir / "events.json", dump_json(events))
-    save_run_consistency(estimate, result.sequence, out_dir / CONSISTENCY_FILE)
-    metrics = compute_metrics(estimate, result.sequence)
-    metrics["warnings"] = run_warnings(result)
-    metrics.update(run_provenance(result))
-    if plot_formats:
-        from workbench.plots import write_run_plots
+    with replaced_as_a_whole(out_dir) as folder:
+        request = result.request
+        resolved = {
+            "estimator": request.estimator,
+            "dataset": result.sequence.name,
+            "seed": request.seed,
+            "data_options": dict(request.data_options),
+            "dataset_metadata": result.sequence.metadata,
+            "config": result.config.model_dump(mode="json"),
+        }
+        write_atomic(folder / "config.yaml", yaml.safe_dump(resolved, sort_keys=True))
+        for name, content in (extra_files or {}).items():
+            write_atomic(folder / name, dump_json(content))
+        estimate = result.estimate
+        if estimate.causal.pose is not None:
+            write_tum(folder / "estimate.tum", estimate.causal.pose)
+        if estimate.smoothed is not None and estimate.smoothed.pose is not None:
+            write_tum(folder / "estimate_smoothed.tum", estimate.smoothed.pose)
+        truth = result.sequence.ground_truth
+        if truth is not None and truth.pose is not None:
+            write_tum(folder / "reference.tum", truth.pose)
+        save_npz_atomic(folder / "estimate.npz", estimate_arrays(estimate))
+        events = {
+            "notes": list(estimate.notes),
+            "events": [
+                {"t": event.t, "kind": event.kind, **event.details}
+                for event in estimate.diagnostics.events
+            ],
+        }
+        write_atomic(folder / "events.json", dump_json(events))
+        save_run_consistency(estimate, result.sequence, folder / CONSISTENCY_FILE)
+        metrics = compute_metrics(estimate, result.sequence)
+        metrics["warnings"] = run_warnings(result)
+        metrics.update(run_provenance(result))
+        if plot_formats:
+            from workbench.plots import write_run_plots
 
-        write_run_plots(
-            estimate,
-            result.sequence,
-            out_dir / "plots",
-            title=f"{request.estimator} on {result.sequence.name}",
-            formats=plot_formats,
-        )
-    write_atomic(out_dir / METRICS_FILE, dump_json(metrics))
+            write_run_plots(
+                estimate,
+                result.sequence,
+                folder / "plots",
+                title=f"{request.estimator} on {result.sequence.name}",
+                formats=plot_formats,
+            )
+        write_atomic(folder / METRICS_FILE, dump_json(metrics))
     return metrics
 
 
@@ -225,9 +233,9 @@ def write_failed_run(
 ) -> None:
     """A failed run's folder: the request it failed on (``bench_request.json``) and the
     error (``error.json``), which ``workbench.results`` reads as a failed row."""
+    from workbench.folder_swap import replaced_as_a_whole
     from workbench.results.runs import ERROR_FILE, REQUEST_FILE
 
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    write_atomic(folder / REQUEST_FILE, dump_json(request))
-    write_atomic(folder / ERROR_FILE, dump_json({"error": message, "traceback": details}))
+    with replaced_as_a_whole(Path(folder)) as staging:
+        write_atomic(staging / REQUEST_FILE, dump_json(request))
+        write_atomic(staging / ERROR_FILE, dump_json({"error": message, "traceback": details}))

@@ -7,15 +7,13 @@ A cell is finished when its ``metrics.json`` exists (``run_folder`` writes it la
 
 from __future__ import annotations
 
-import json
 import time
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from datasets.errors import one_line
-from workbench.sweep.plan import ERROR_FILE, METRICS_FILE, REQUEST_FILE, Cell
+from workbench.sweep.plan import REQUEST_FILE, Cell
 
 
 @dataclass(frozen=True)
@@ -25,12 +23,6 @@ class CellOutcome:
     folder: Path
     seconds: float
     error: str | None = None
-
-
-def _write_json(path: Path, data: Any) -> None:
-    from datasets.trajectory_io import write_atomic
-
-    write_atomic(path, json.dumps(data, indent=2, sort_keys=True) + "\n")
 
 
 def run_cell(cell: Cell, plot_formats: tuple[str, ...] = ()) -> CellOutcome:
@@ -44,10 +36,6 @@ def run_cell(cell: Cell, plot_formats: tuple[str, ...] = ()) -> CellOutcome:
     folder = cell.folder
     if cell.is_finished():  # done meanwhile, e.g. by another sweep into the same folder
         return CellOutcome(folder, 0.0)
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / METRICS_FILE).unlink(missing_ok=True)
-    (folder / ERROR_FILE).unlink(missing_ok=True)
-    _write_json(folder / REQUEST_FILE, cell.request_record())
     request = RunRequest(
         estimator=cell.estimator.name,
         dataset=cell.dataset_name,
@@ -59,7 +47,8 @@ def run_cell(cell: Cell, plot_formats: tuple[str, ...] = ()) -> CellOutcome:
     )
     try:
         result = execute(request)
-        write_run_folder(result, folder, plot_formats)  # writes metrics.json last
+        # the folder is replaced as a whole: a kill leaves the earlier run or this one
+        write_run_folder(result, folder, plot_formats, {REQUEST_FILE: cell.request_record()})
     except Exception as error:  # noqa: BLE001 - one failed run must not stop the sweep
         message = one_line(error)
         write_failed_run(folder, cell.request_record(), message, traceback.format_exc())

@@ -1,0 +1,75 @@
+"""A run rewriting an earlier run's folder, killed (SIGKILL) at random moments, leaves
+exactly the old run or exactly the new one; the next run removes what the kill left."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+RUN = [
+    sys.executable,
+    "-c",
+    "import sys; from workbench.cli import main; sys.exit(main(sys.argv[1:]))",
+    "run",
+    "dead-reckoning",
+    "sim:circle",
+    "--data",
+    "duration_s=2",
+    "--no-plots",
+]
+
+
+def _run(folder: Path, seed: int) -> subprocess.Popen:
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    return subprocess.Popen(
+        [*RUN, "--seed", str(seed), "--out", str(folder)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
+
+
+def _content(folder: Path) -> tuple[frozenset[str], int, bytes]:
+    """(file names, the seed its config records, its trajectory bytes)."""
+    names = frozenset(path.name for path in folder.iterdir())
+    seed = yaml.safe_load((folder / "config.yaml").read_text())["seed"]
+    return names, seed, (folder / "estimate.tum").read_bytes()
+
+
+def test_a_killed_rewrite_leaves_the_old_run_or_the_new_one(tmp_path: Path) -> None:
+    reference_new = tmp_path / "new"
+    assert _run(reference_new, 5).wait() == 0
+    new = _content(reference_new)
+    folder = tmp_path / "run"
+    started = time.perf_counter()
+    assert _run(folder, 1).wait() == 0
+    duration = time.perf_counter() - started
+    old = _content(folder)
+    assert old[0] == new[0] and old[1:] != new[1:]
+    rng = np.random.default_rng(0)
+    outcomes = []
+    interrupted = 0  # kills that landed while the new folder was being written
+    for delay in rng.uniform(0.3 * duration, 1.1 * duration, 20):
+        process = _run(folder, 5 if len(outcomes) % 2 == 0 else 1)
+        time.sleep(delay)
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+        found = _content(folder)
+        assert found in (old, new), found[:2]
+        outcomes.append(found[1])
+        interrupted += any(p.name.startswith(".run.partial-") for p in tmp_path.iterdir())
+        # the next write starts from whatever is there: make it the old run again
+        if found != old:
+            assert _run(folder, 1).wait() == 0
+    assert interrupted >= 1, interrupted  # at least one kill hit the write itself
+    assert _run(folder, 1).wait() == 0
+    assert _content(folder) == old
+    leftovers = [p.name for p in tmp_path.iterdir() if p.name.startswith(".run.")]
+    assert leftovers == []
