@@ -120,11 +120,12 @@ class FixedLagConfig(SmootherConfig):
 
     lag_s: float = Field(5.0, gt=0, description="window length [s]")
     keep_map: bool = Field(
-        True,
-        description="landmarks stay in the window (only vehicle states leave it), so a landmark "
-        "seen again closes the loop exactly; false: a landmark unseen for lag_s leaves too and "
-        "comes back with its marginal at departure as a prior (its correlation with the window "
-        "dropped: optimistic)",
+        False,
+        description="false: a landmark unseen for lag_s leaves the window and, seen again, comes "
+        "back with its marginal at departure as a prior, so loops close at a bounded cost (its "
+        "correlation with the window is dropped: optimistic, UTIAS robot 1 pose NEES 376 per 3 "
+        "dof, ATE 0.12 m); true: landmarks stay in the window and only vehicle states leave it "
+        "(consistent, NEES 5.4, ATE 0.14 m, at a cost that grows with the map)",
     )
     causal_covariances: bool = Field(True, description="marginal covariances after every keyframe")
     factorization: Literal["CHOLESKY", "QR"] = Field(

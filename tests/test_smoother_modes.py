@@ -153,9 +153,9 @@ def test_3d_relative_pose_odometry_factors_tighten_the_trajectory():
 
 def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     """Victoria Park's first 1000 steps have stretches without landmarks longer than the
-    5 s window: keyframes on motion alone bridge them. With the map kept in the window a
-    landmark seen again is the same variable; with keep_map=false it comes back from its
-    departure marginal (an event per return)."""
+    5 s window: keyframes on motion alone bridge them. With keep_map=true a landmark seen
+    again is the same variable; by default it comes back from its departure marginal (an
+    event per return)."""
     from datasets.victoria_park import default_path
 
     if not default_path().is_file():
@@ -163,7 +163,7 @@ def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     sequence = load_dataset("victoria-park", 0, {"max_steps": "1000"})
     scan_times = np.array([m.t for m in sequence.measurements() if isinstance(m, LandmarkScan)])
     assert np.max(np.diff(scan_times)) > 5.0  # the gap the window must bridge
-    kept = SmootherFixedLag(SmootherFixedLag.Config(), sequence)
+    kept = SmootherFixedLag(SmootherFixedLag.Config(keep_map=True), sequence)
     for measurement in sequence.measurements():
         kept.process(measurement)
     estimate = kept.estimate()
@@ -172,7 +172,7 @@ def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     assert returns == []
     seen = {int(i) for _, ids in sequence.ground_truth.scan_ids for i in ids}
     assert len(estimate.landmarks) == len(seen)
-    leaving = SmootherFixedLag(SmootherFixedLag.Config(keep_map=False), sequence)
+    leaving = SmootherFixedLag(SmootherFixedLag.Config(), sequence)
     for measurement in sequence.measurements():
         leaving.process(measurement)
     returned = [e for e in leaving.estimate().diagnostics.events if e.kind == "landmark_returned"]
