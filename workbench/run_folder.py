@@ -6,6 +6,9 @@ Layout (all directly in the folder)::
     estimate.tum           causal trajectory (TUM, loadable by evo), when there is a pose
     estimate_smoothed.tum  smoothed trajectory (smoothers)
     reference.tum          ground-truth trajectory, when known
+    *.kitti                the same trajectories as KITTI poses (3x4 rows; times in the .tum)
+    ape.zip, rpe.zip       evo result files (``evo_res`` reads them as they are; and
+                           ``*_smoothed.zip``), see ``workbench.evo_results``
     estimate.npz           covariances, state blocks, final map, diagnostics, timing
     consistency.npz        per-step NEES of every block (causal and smoothed), map NEES, NIS
     events.json            discrete events (loop closures, skips) and the estimator's notes
@@ -29,7 +32,8 @@ import yaml
 
 from datasets.estimate import Estimate
 from datasets.state import StateHistory
-from datasets.trajectory_io import save_npz_atomic, write_atomic, write_tum
+from datasets.trajectory_io import save_npz_atomic, write_atomic, write_kitti, write_tum
+from workbench.evo_results import write_evo_results
 from workbench.results.consistency import CONSISTENCY_FILE, save_run_consistency
 from workbench.runner import RunResult
 
@@ -194,13 +198,22 @@ def write_run_folder(
         for name, content in (extra_files or {}).items():
             write_atomic(folder / name, dump_json(content))
         estimate = result.estimate
-        if estimate.causal.pose is not None:
-            write_tum(folder / "estimate.tum", estimate.causal.pose)
-        if estimate.smoothed is not None and estimate.smoothed.pose is not None:
-            write_tum(folder / "estimate_smoothed.tum", estimate.smoothed.pose)
         truth = result.sequence.ground_truth
-        if truth is not None and truth.pose is not None:
-            write_tum(folder / "reference.tum", truth.pose)
+        reference = None if truth is None else truth.pose
+        histories = (("", estimate.causal), ("_smoothed", estimate.smoothed))
+        for suffix, history in histories:
+            if history is None or history.pose is None or len(history.pose) == 0:
+                continue
+            write_tum(folder / f"estimate{suffix}.tum", history.pose)
+            write_kitti(folder / f"estimate{suffix}.kitti", history.pose)
+            if reference is not None and len(reference):
+                label = f"{request.estimator} on {result.sequence.name} seed {request.seed}"
+                write_evo_results(
+                    folder, reference, history.pose, label + suffix.replace("_", " "), suffix
+                )
+        if reference is not None and len(reference):
+            write_tum(folder / "reference.tum", reference)
+            write_kitti(folder / "reference.kitti", reference)
         save_npz_atomic(folder / "estimate.npz", estimate_arrays(estimate))
         events = {
             "notes": list(estimate.notes),

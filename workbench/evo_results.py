@@ -1,0 +1,92 @@
+"""evo result files of a run: ``ape.zip`` and ``rpe.zip`` (and ``*_smoothed.zip``) in the
+layout ``evo_res`` reads as they are (``evo.tools.file_interface.load_res_file``: a zip of
+``info.json``, ``stats.json``, ``error_array.npy``, ``timestamps.npy``), so evo users can
+keep and merge the workbench's results with theirs.
+
+The figures are the workbench's own (``workbench.metrics``), computed as evo computes them:
+APE of the translation part after alignment (SE(3) in 3-D, SE(2) for planar runs: evo's
+``--align --project_to_plane xy`` equivalent), RPE of the translation part over 1 frame
+without alignment. Their RMSE equals metrics.json's ``ate_rmse_m`` and ``rpe_trans_rmse_m``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from datasets.errors import InputError
+from datasets.trajectory import Trajectory
+from datasets.trajectory_io import write_atomic
+from workbench.metrics.ate import ate_errors, paired_trajectories
+from workbench.metrics.rpe import rpe_errors
+
+MIN_POSES = 3
+"""Fewer paired poses than this give no result (an alignment needs three)."""
+
+
+def evo_statistics(errors: np.ndarray) -> dict[str, float]:
+    """The statistics evo stores in ``stats.json`` (its ``StatisticsType`` names)."""
+    errors = np.asarray(errors, dtype=float)
+    return {
+        "rmse": math.sqrt(float(np.mean(errors**2))),
+        "mean": float(np.mean(errors)),
+        "median": float(np.median(errors)),
+        "std": float(np.std(errors)),
+        "min": float(np.min(errors)),
+        "max": float(np.max(errors)),
+        "sse": float(np.sum(errors**2)),
+    }
+
+
+def result_zip(info: dict[str, str], errors: np.ndarray, timestamps: np.ndarray) -> bytes:
+    """One evo result file as bytes."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        archive.writestr("info.json", json.dumps(info))
+        archive.writestr("stats.json", json.dumps(evo_statistics(errors)))
+        for name, array in (("error_array", errors), ("timestamps", timestamps)):
+            array_buffer = io.BytesIO()
+            np.save(array_buffer, np.asarray(array, dtype=float))
+            archive.writestr(f"{name}.npy", array_buffer.getvalue())
+    return buffer.getvalue()
+
+
+def write_evo_results(
+    folder: Path, reference: Trajectory, estimate: Trajectory, name: str, suffix: str = ""
+) -> list[str]:
+    """Write ``ape{suffix}.zip`` and ``rpe{suffix}.zip`` into ``folder``, the estimate
+    labelled ``name`` (``evo_res`` wants the labels of the results it compares distinct);
+    returns the files written (none when fewer than ``MIN_POSES`` poses pair with the
+    reference)."""
+    try:
+        ref_paired, est_paired = paired_trajectories(reference, estimate)
+    except InputError:
+        return []
+    if len(est_paired) < MIN_POSES:
+        return []
+    align = "se3" if estimate.dimension == 3 else "se2"
+    label = "SE(3)" if align == "se3" else "SE(2)"
+    errors, _, _ = ate_errors(ref_paired, est_paired, align)
+    ape = {
+        "title": f"APE w.r.t. translation part (m)\n(with {label} Umeyama alignment)",
+        "ref_name": "reference",
+        "est_name": name,
+        "label": "APE (m)",
+    }
+    write_atomic(folder / f"ape{suffix}.zip", result_zip(ape, errors, est_paired.t))
+    written = [f"ape{suffix}.zip"]
+    pairs, trans, _ = rpe_errors(ref_paired, est_paired, 1, "frames")
+    rpe = {
+        "title": "RPE w.r.t. translation part (m)\nfor delta = 1 (frames) using consecutive pairs\n(not aligned)",
+        "ref_name": "reference",
+        "est_name": name,
+        "label": "RPE (m)",
+    }
+    write_atomic(folder / f"rpe{suffix}.zip", result_zip(rpe, trans, est_paired.t[pairs[:, 1]]))
+    written.append(f"rpe{suffix}.zip")
+    return written
