@@ -251,3 +251,20 @@ def test_static_truth_still_gets_an_aligned_ate() -> None:
     assert metrics["ate_rmse_raw_m"] == pytest.approx(np.sqrt(np.mean(drift**2)), rel=1e-9)
     assert metrics["nees_pose_mean"] is None  # no covariance
     assert metrics["kitti_translation_percent"] is None
+
+
+def test_too_few_poses_or_a_non_finite_reference_give_n_a_not_a_number() -> None:
+    from datasets.state import GroundTruth, StateHistory
+    from datasets.trajectory import Trajectory
+    from workbench.metrics.summary import accuracy_metrics
+
+    t = np.arange(10) * 0.1
+    truth = Trajectory(t, np.column_stack([t, np.zeros(10)]), np.zeros(10))
+    ground_truth = GroundTruth(history=StateHistory(pose=truth))
+    one_pose = Trajectory(t[:1], np.zeros((1, 2)), np.zeros(1))
+    assert accuracy_metrics(one_pose, ground_truth)["ate_rmse_m"] is None
+    nan_truth = Trajectory(t, np.full((10, 2), np.nan), np.zeros(10))
+    estimate = Trajectory(t, np.column_stack([t, np.zeros(10)]), np.zeros(10))
+    metrics = accuracy_metrics(estimate, GroundTruth(history=StateHistory(pose=nan_truth)))
+    assert metrics["ate_rmse_m"] is None and metrics["rpe_trans_rmse_m"] is None
+    assert accuracy_metrics(estimate, ground_truth)["ate_rmse_m"] == pytest.approx(0.0, abs=1e-12)

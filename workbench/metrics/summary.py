@@ -123,6 +123,10 @@ def _rmse(errors: np.ndarray) -> float | None:
     return _number(math.sqrt(float(np.mean(errors**2)))) if errors.size else None
 
 
+MIN_SCORED_POSES = 3
+"""Fewer poses paired with a finite reference give n/a accuracy, not a number."""
+
+
 def accuracy_metrics(pose: Trajectory | None, ground_truth: GroundTruth | None) -> Metrics:
     """ATE, RPE, final orientation error and held-out GPS RMSE of one pose history."""
     metrics: Metrics = dict.fromkeys(ACCURACY_KEYS)
@@ -135,6 +139,13 @@ def accuracy_metrics(pose: Trajectory | None, ground_truth: GroundTruth | None) 
         reference, estimate = paired_trajectories(ground_truth.pose, pose)
     except InputError:
         return metrics  # no stamps in common: nothing to compare
+    finite = np.all(np.isfinite(reference.positions), axis=1)
+    if int(finite.sum()) < MIN_SCORED_POSES:
+        return metrics  # n/a, never a number from one or two poses (an alignment needs 3)
+    reference, estimate = (
+        reference.select(np.flatnonzero(finite)),
+        estimate.select(np.flatnonzero(finite)),
+    )
     align = "se3" if pose.dimension == 3 else "se2"
     metrics["ate_rmse_m"] = _rmse(ate_errors(reference, estimate, align, allow_degenerate=True)[0])
     metrics["ate_rmse_raw_m"] = _rmse(ate_errors(reference, estimate, "none")[0])
