@@ -218,10 +218,12 @@ def show_report(report: Report, title: str) -> None:
     """The compact terminal table, the notes, and where the files are."""
     from rich.console import Console
 
-    from workbench.results.tables import table_notes, terminal_table
+    from workbench.results.tables import table_notes, terminal_tables
 
-    console = Console(width=max(100, Console().width))
-    console.print(terminal_table(report.rows, title))
+    # a log or a pipe gets 120 columns (rich's default 80 would cut the names)
+    console = Console(width=max(120, Console().width))
+    for table in terminal_tables(report.rows, title):
+        console.print(table)
     for note in table_notes(report.rows, report.notes):
         typer.echo(f"- {note}")
     typer.echo(f"table: {report.tables['md']} (.tex, .csv: every column)")

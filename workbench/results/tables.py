@@ -258,43 +258,51 @@ VERDICT_STYLES = {
 }
 
 
-def terminal_table(rows: list[PairSummary], title: str = ""):
-    """The columns a reader needs first, as a rich ``Table``: ATE, the consistency verdicts,
-    NIS/dof, time per step (the full table stays in the files)."""
+def terminal_tables(rows: list[PairSummary], title: str = "") -> list:
+    """The columns a reader needs first, one rich ``Table`` per dataset (titled with it, so
+    no column repeats it): estimator, runs, ATE, the consistency verdicts, NIS/dof, time per
+    step. The full table stays in the files."""
     from rich.table import Table
     from rich.text import Text
 
-    blocks = _shown_blocks(rows)
-    table = Table(title=title or None, show_lines=False)
-    for name in ("dataset", "estimator", "runs", "ATE [m]"):
-        table.add_column(name, justify="right" if name in ("runs", "ATE [m]") else "left")
-    for block in blocks:
-        table.add_column(BLOCK_HEADERS[block], justify="right")
-    table.add_column("NIS/dof", justify="right")
-    table.add_column("ms/step", justify="right")
-    for row in rows:
-        if row.status in ("n/a", "failed", "missing"):
-            table.add_row(row.dataset, row.estimator, _runs_text(row), row.status)
-            continue
-        ate = row.stats.get("ate_rmse_m") or row.stats.get("ate_rmse_smoothed_m")
-        smoothed = "ˢ" if "ate_rmse_m" not in row.stats and ate is not None else ""
-        cells: list = [
-            row.dataset,
-            row.estimator,
-            _runs_text(row),
-            (format_number(ate.mean, 3) + smoothed) if ate else "",
-        ]
+    tables = []
+    datasets = list(dict.fromkeys(row.dataset for row in rows))
+    for dataset in datasets:
+        blocks = _shown_blocks([row for row in rows if row.dataset == dataset])
+        heading = f"{title}: {dataset}" if title else dataset
+        table = Table(title=heading, title_justify="left", show_lines=False)
+        table.add_column("estimator", no_wrap=True)
+        table.add_column("runs", justify="right", no_wrap=True)
+        table.add_column("ATE [m]", justify="right", no_wrap=True)
         for block in blocks:
-            cell = row.cells.get(block)
-            if cell is None:
-                cells.append("")
-            else:
-                cells.append(Text(cell_text(cell), style=VERDICT_STYLES[cell.statistic.verdict]))
-        cells.append(format_number(row.nis_per_dof, 3))
-        cost = row.stats.get("time_per_step_ms_median")
-        cells.append(format_number(cost.mean, 3) if cost else "")
-        table.add_row(*cells)
-    return table
+            table.add_column(BLOCK_HEADERS[block], justify="right", no_wrap=True)
+        table.add_column("NIS/dof", justify="right", no_wrap=True)
+        table.add_column("ms/step", justify="right", no_wrap=True)
+        for row in (r for r in rows if r.dataset == dataset):
+            if row.status in ("n/a", "failed", "missing"):
+                table.add_row(row.estimator, _runs_text(row), row.status)
+                continue
+            ate = row.stats.get("ate_rmse_m") or row.stats.get("ate_rmse_smoothed_m")
+            smoothed = "ˢ" if "ate_rmse_m" not in row.stats and ate is not None else ""
+            cells: list = [
+                row.estimator,
+                _runs_text(row),
+                (format_number(ate.mean, 3) + smoothed) if ate else "",
+            ]
+            for block in blocks:
+                cell = row.cells.get(block)
+                if cell is None:
+                    cells.append("")
+                else:
+                    cells.append(
+                        Text(cell_text(cell), style=VERDICT_STYLES[cell.statistic.verdict])
+                    )
+            cells.append(format_number(row.nis_per_dof, 3))
+            cost = row.stats.get("time_per_step_ms_median")
+            cells.append(format_number(cost.mean, 3) if cost else "")
+            table.add_row(*cells)
+        tables.append(table)
+    return tables
 
 
 def non_timing_columns(csv_text: str) -> list[dict[str, str]]:
