@@ -116,3 +116,20 @@ def test_estimator_overrides():
         estimator_overrides(["smoother-batch.x=1"], ["aghili"])
     with pytest.raises(InputError, match="ESTIMATOR.key=value"):
         estimator_overrides(["x=1"], ["aghili"])
+
+
+def test_workbench_bag_twice_gives_the_same_table(tmp_path: Path, capsys) -> None:
+    """Determinism: KISS-ICP runs on one thread by default, so the same bag gives the same
+    numbers on any machine (timing columns aside)."""
+    from workbench.cli import main
+    from workbench.results.tables import non_timing_columns
+
+    bag = write_lidar_bag(tmp_path / "corridor", 3, "ros1", {**SEGMENT, "duration_s": "2"})
+    tables = []
+    for name in ("first", "second"):
+        out = tmp_path / name
+        argv = ["bag", str(bag), "--out", str(out), "--estimators", "dead-reckoning,ekf-slam"]
+        assert main([*argv, "--no-plots"]) == 0
+        tables.append(non_timing_columns((out / "table.csv").read_text()))
+    capsys.readouterr()
+    assert tables[0] == tables[1] and len(tables[0]) >= 2

@@ -375,6 +375,14 @@ def register(app: typer.Typer) -> None:
             str,
             typer.Option("--plot-format", help="figure formats, comma-separated: png, pdf, svg"),
         ] = "png",
+        threads: Annotated[
+            int,
+            typer.Option(
+                "--threads",
+                min=0,
+                help="KISS-ICP threads (1, the default: identical results on any machine; 0: all)",
+            ),
+        ] = 1,
     ) -> None:
         """Lidar bag end to end: KISS-ICP + corners, every estimator, a comparison table."""
         rows = bag_command(
@@ -384,7 +392,7 @@ def register(app: typer.Typer) -> None:
             imu_topic,
             gt_topic,
             estimators,
-            data or [],
+            [f"kiss.max_num_threads={threads}", *(data or [])],
             plots,
             settings_overrides=set_ or [],
             plot_formats=parse_plot_formats(plot_format),
