@@ -318,8 +318,11 @@ def scans_sequence(
             last = stamp
             yield cloud
 
+    resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
+
     def stream():
         yield from with_front_end(clouds(), front_end, settings.point_clouds, settings.max_frames)
+        resolved.update(front_end.resolved())
         for line in source.report.lines():
             log.warning("%s", line)
 
@@ -349,6 +352,7 @@ def scans_sequence(
             if settings.ground_truth
             else None,
             "files": len(files),
+            "kiss_icp": resolved,
             "time_order_problems": int(order_problem.size),
             "options": settings.model_dump(mode="json"),
         },

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -111,3 +113,31 @@ def test_bad_scans(tmp_path):
     (tmp_path / "times.txt").write_text("0.0\n")
     with pytest.raises(InputError, match="1 times for 3 scans"):
         load_dataset(f"scans:{tmp_path}", 0, {})
+
+
+def test_kiss_icp_max_range_comes_from_the_first_scan_and_is_recorded() -> None:
+    from datasets.lidar.kiss_icp_odometry import range_from_scan
+
+    rng = np.random.default_rng(0)
+    directions = rng.normal(size=(20000, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    outdoor = directions * rng.uniform(1.0, 78.0, (20000, 1))
+    assert range_from_scan(outdoor) == 80.0
+    assert range_from_scan(directions * rng.uniform(0.5, 6.0, (20000, 1))) == 10.0  # floor
+    assert range_from_scan(directions * 500.0) == 100.0  # KISS-ICP's own ceiling
+
+
+def test_the_real_kitti_clip_gets_its_range_from_its_first_scan() -> None:
+    from workbench.registry import load_dataset
+
+    clip = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti-hdl64-clip"
+    if not clip.is_dir():
+        pytest.skip("../shared/data/kitti-hdl64-clip (real data) absent")
+    sequence = load_dataset(f"scans:{clip}", 0, {"max_frames": "2"})
+    for _ in sequence.measurements():
+        pass
+    assert sequence.metadata["kiss_icp"] == {
+        "max_range_m": 80.0,
+        "voxel_size_m": 0.8,
+        "max_range_source": "first scan (99.9th range percentile)",
+    }

@@ -253,6 +253,8 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     source = LidarSource(front_end)
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
 
+    resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
+
     def stream():
         report = ReadReport()
         source.report = report
@@ -262,6 +264,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             settings.point_clouds,
             settings.max_frames,
         )
+        resolved.update(front_end.resolved())
         for line in report.lines():
             log.warning("%s: %s", path, line)
 
@@ -305,6 +308,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
                 "gps": gps_topic,
             },
             "gps_origin": list(origin) if origin else None,
+            "kiss_icp": resolved,
             "corner_sidecar": str(sidecar) if truth is not None else None,
             "options": settings.model_dump(mode="json"),
             "ground_truth_skips": load_report.lines(),

@@ -161,6 +161,26 @@ class LidarFrontEnd:
             points = deskew_to_end(points, times[chosen], self._odometry.last_delta())
         return extract_corners(points, config)
 
+    def resolved(self) -> dict[str, float | str]:
+        """What KISS-ICP runs with, for the run's metadata: max range and voxel [m] and
+        where the range came from (empty before the first scan or without odometry)."""
+        settings = self.kiss_settings
+        if settings is None or settings.max_range_m is None or not self.frames:
+            return {}
+        voxel = settings.voxel_size_m or settings.max_range_m / 100.0
+        derived = self.settings.kiss.max_range_m is None
+        return {
+            "max_range_m": float(settings.max_range_m),
+            "voxel_size_m": float(voxel),
+            "max_range_source": "first scan (99.9th range percentile)" if derived else "given",
+        }
+
+    @property
+    def kiss_settings(self) -> KissIcpSettings | None:
+        """The KISS-ICP settings in use (the max range resolved from the first scan once
+        one has arrived), or None without odometry."""
+        return None if self._odometry is None else self._odometry.settings
+
     def trajectory(self) -> Trajectory | None:
         """KISS-ICP poses of the frames so far (world = first body frame), or None."""
         return None if self._odometry is None else self._odometry.trajectory()

@@ -275,6 +275,17 @@ def bag_command(
         write_tum(front_dir / "kiss_icp.tum", trajectory)
     write_atomic(front_dir / "corners.csv", corners_csv(source.front_end.frames))
     front = front_end_metrics(sequence, source, seconds)
+    kiss = source.front_end.kiss_settings
+    if kiss is not None:
+        voxel = kiss.voxel_size_m if kiss.voxel_size_m is not None else kiss.max_range_m / 100.0
+        given = settings.kiss.max_range_m is not None
+        front["kiss_icp_max_range_m"] = kiss.max_range_m
+        front["kiss_icp_voxel_size_m"] = voxel
+        typer.echo(
+            f"front end: KISS-ICP max range {kiss.max_range_m:g} m "
+            f"({'given' if given else 'from the first scan'}), voxel {voxel:g} m",
+            err=True,
+        )
     write_atomic(front_dir / "metrics.json", dump_json(front))
     for line in source.report.lines():
         typer.echo(f"warning: {path}: {line}", err=True)
