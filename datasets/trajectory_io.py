@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from datasets.errors import InputError
+from datasets.text_files import text_lines
 from datasets.trajectory import Trajectory, trajectory_from_homogeneous
 
 
@@ -71,17 +72,23 @@ def write_tum(path: str | Path, trajectory: Trajectory) -> Path:
     return write_atomic(path, "# timestamp tx ty tz qx qy qz qw\n" + format_tum(trajectory))
 
 
+MAX_POSITION_M = 1e7
+"""Positions farther than this from the origin are not a trajectory (a corrupted file, or
+values of 1e308 that break every alignment): an error, not a number."""
+
+
 def read_tum(path: str | Path) -> Trajectory:
     """Read a TUM file into a 3-D ``Trajectory``.
 
-    Raises ``InputError`` naming the file and line for a missing file, a malformed line,
-    non-finite values, or a file without poses.
+    Raises ``InputError`` naming the file and line for a missing or non-text file, a
+    malformed line, non-finite or absurd values, stamps that do not increase (out of order,
+    repeated: evo would pair them as they are and report a wrong number), or a file without
+    poses.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
     rows = []
-    for line_number, line in enumerate(path.read_text().splitlines(), start=1):
+    lines = []
+    for line_number, line in text_lines(path, "TUM file"):
         stripped = line.strip()
         if not stripped or stripped.startswith("#"):
             continue
@@ -96,7 +103,17 @@ def read_tum(path: str | Path) -> Trajectory:
             raise InputError(f"{path}:{line_number}: not a number ({error})") from None
         if not np.all(np.isfinite(values)):
             raise InputError(f"{path}:{line_number}: non-finite value")
+        if max(abs(v) for v in values[1:4]) > MAX_POSITION_M:
+            raise InputError(
+                f"{path}:{line_number}: position beyond {MAX_POSITION_M:g} m from the origin"
+            )
+        if rows and values[0] <= rows[-1][0]:
+            raise InputError(
+                f"{path}:{line_number}: time {values[0]!r} is not after the previous pose's "
+                f"{rows[-1][0]!r} (line {lines[-1]}): stamps out of order or repeated"
+            )
         rows.append(values)
+        lines.append(line_number)
     if not rows:
         raise InputError(f"{path}: no poses in file")
     table = np.array(rows)
@@ -104,7 +121,7 @@ def read_tum(path: str | Path) -> Trajectory:
     norms = np.linalg.norm(quats, axis=1)
     if np.any(norms < 1e-9):
         bad = int(np.argmin(norms))
-        raise InputError(f"{path}: zero quaternion at pose {bad} (t={table[bad, 0]})")
+        raise InputError(f"{path}:{lines[bad]}: zero quaternion at pose {bad} (t={table[bad, 0]})")
     return Trajectory(t=table[:, 0], positions=table[:, 1:4], rotations=quats / norms[:, None])
 
 
@@ -121,10 +138,8 @@ def write_kitti(path: str | Path, trajectory: Trajectory) -> Path:
 def read_kitti(path: str | Path, t: np.ndarray | None = None) -> Trajectory:
     """Read KITTI poses; times are ``t`` if given, else the pose index (s)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
     rows = []
-    for line_number, line in enumerate(path.read_text().splitlines(), start=1):
+    for line_number, line in text_lines(path, "KITTI pose file"):
         if not line.strip():
             continue
         fields = line.split()
@@ -133,9 +148,19 @@ def read_kitti(path: str | Path, t: np.ndarray | None = None) -> Trajectory:
                 f"{path}:{line_number}: expected 12 numbers (3x4 pose), got {len(fields)}"
             )
         try:
-            rows.append([float(field) for field in fields])
+            values = [float(field) for field in fields]
         except ValueError as error:
             raise InputError(f"{path}:{line_number}: not a number ({error})") from None
+        if not np.all(np.isfinite(values)):
+            raise InputError(f"{path}:{line_number}: non-finite value")
+        if max(abs(values[3]), abs(values[7]), abs(values[11])) > MAX_POSITION_M:
+            raise InputError(
+                f"{path}:{line_number}: position beyond {MAX_POSITION_M:g} m from the origin"
+            )
+        rotation = np.array(values).reshape(3, 4)[:, :3]
+        if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-3):
+            raise InputError(f"{path}:{line_number}: the 3x3 block is not a rotation")
+        rows.append(values)
     if not rows:
         raise InputError(f"{path}: no poses in file")
     poses = np.tile(np.eye(4), (len(rows), 1, 1))

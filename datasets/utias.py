@@ -70,6 +70,7 @@ from datasets.range_bearing import convert
 from datasets.rotations import rot2_batch, wrap_angle
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import BlockName, Frame, GroundTruth, LandmarkMap, StateBlock, StateHistory
+from datasets.text_files import text_lines
 from datasets.trajectory import Trajectory
 
 ROBOT_SUBJECTS = frozenset({1, 2, 3, 4, 5})
@@ -126,6 +127,13 @@ class UtiasOptions(BaseModel):
         description="ground truth: swap the survey positions of barcodes whose sightings (placed "
         "with the Vicon poses) sit at each other's surveyed position (detected; dataset 1: 18 and 61)",
     )
+    max_dropped_fraction: float = Field(
+        0.01,
+        ge=0,
+        le=1,
+        description="rows whose time does not increase are dropped and counted; more than this "
+        "fraction of the odometry and ground truth is an error (the file is broken, not quirky)",
+    )
     max_vicon_speed_m_s: float = Field(
         2.0,
         gt=0,
@@ -170,31 +178,28 @@ def read_table(path: Path, columns: tuple[str, ...]) -> _Table:
         path: the file.
         columns: names of the expected columns (their count is enforced on every row).
     """
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
     rows: list[list[float]] = []
     lines: list[int] = []
     decimals: list[int] = []
-    with path.open("r", encoding="utf-8", errors="replace") as handle:
-        for number, line in enumerate(handle, start=1):
-            text = line.split("#", 1)[0].strip()
-            if not text:
-                continue
-            fields = text.split()
-            if len(fields) != len(columns):
-                raise InputError(
-                    f"{path}:{number}: expected {len(columns)} columns ({', '.join(columns)}), got {len(fields)}: '{text}'"
-                )
-            try:
-                values = [float(field) for field in fields]
-            except ValueError:
-                raise InputError(f"{path}:{number}: not a number in '{text}'") from None
-            if not all(np.isfinite(values)):
-                raise InputError(f"{path}:{number}: non-finite value in '{text}'")
-            rows.append(values)
-            lines.append(number)
-            mantissa = fields[0].lower().split("e")[0]
-            decimals.append(len(mantissa.partition(".")[2]))
+    for number, line in text_lines(path, "MRCLAM file"):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        fields = text.split()
+        if len(fields) != len(columns):
+            raise InputError(
+                f"{path}:{number}: expected {len(columns)} columns ({', '.join(columns)}), got {len(fields)}: '{text}'"
+            )
+        try:
+            values = [float(field) for field in fields]
+        except ValueError:
+            raise InputError(f"{path}:{number}: not a number in '{text}'") from None
+        if not all(np.isfinite(values)):
+            raise InputError(f"{path}:{number}: non-finite value in '{text}'")
+        rows.append(values)
+        lines.append(number)
+        mantissa = fields[0].lower().split("e")[0]
+        decimals.append(len(mantissa.partition(".")[2]))
     if not rows:
         raise InputError(f"{path}: no data rows")
     return _Table(np.array(rows), np.array(lines), path, np.array(decimals))
@@ -343,6 +348,17 @@ def load_mrclam(
         )
         meas_t = sightings.values[:, 0].copy()
         origin = min(odo_t[0], truth_t[0])
+    dropped = counts.get("odometry_time_not_increasing", 0) + counts.get(
+        "groundtruth_time_not_increasing", 0
+    )
+    total = len(odometry.values) + len(truth.values)
+    if dropped > config.max_dropped_fraction * total:
+        raise InputError(
+            f"{name}: {dropped} of {total} odometry and ground-truth rows do not increase in time "
+            f"(first at {odometry.path}:{odometry.lines[_first_backward(odometry.values[:, 0])]}) "
+            f"and would be dropped, more than max_dropped_fraction={config.max_dropped_fraction}"
+            " (raise it to accept)"
+        )
     odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
     odometry_model = _odometry_noise_model(config, odo_t, odo_values, truth_t, truth_values, name)
     swaps: list[tuple[int, int]] = []
@@ -530,6 +546,12 @@ def _with_ids(scan: LandmarkScan, visible: bool) -> LandmarkScan:
         if visible
         else LandmarkScan(t=scan.t, points=scan.points, covariances=scan.covariances, ids=None)
     )
+
+
+def _first_backward(t: np.ndarray) -> int:
+    """Index of the first time not after its predecessor (0 when there is none)."""
+    backward = np.flatnonzero(np.diff(t) <= 0)
+    return int(backward[0] + 1) if backward.size else 0
 
 
 def _increasing(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:

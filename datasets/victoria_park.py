@@ -45,6 +45,7 @@ from datasets.odometry_noise import OdometryNoiseModel, mean_heading_density, re
 from datasets.options import describe_model, parse_options
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import GroundTruth, StateHistory
+from datasets.text_files import text_lines
 
 
 class VictoriaParkOptions(BaseModel):
@@ -137,62 +138,55 @@ def read_file(
         (step index k >= 1, ids (m,), points (m, 2), covariances (m, 2, 2)); step k is the pose
         reached by the k-th odometry line (k = 0 is the start pose).
     """
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
     increments: list[list[float]] = []
     covariances: list[np.ndarray] = []
     sightings: dict[int, list[tuple[int, list[float]]]] = {}
     pose_key: int | None = None
-    with path.open("r", encoding="utf-8", errors="replace") as handle:
-        for number, line in enumerate(handle, start=1):
-            fields = line.split()
-            if not fields or fields[0].startswith("#"):
-                continue
-            tag = fields[0]
-            expected = {"ODOMETRY": 12, "LANDMARK": 8}.get(tag)
-            if expected is None:
+    for number, line in text_lines(path, "Victoria Park file"):
+        fields = line.split()
+        if not fields or fields[0].startswith("#"):
+            continue
+        tag = fields[0]
+        expected = {"ODOMETRY": 12, "LANDMARK": 8}.get(tag)
+        if expected is None:
+            raise InputError(
+                f"{path}:{number}: unknown tag '{tag}' (expected ODOMETRY or LANDMARK)"
+            )
+        if len(fields) != expected:
+            raise InputError(
+                f"{path}:{number}: {tag} needs {expected - 1} fields after the tag, got {len(fields) - 1}"
+            )
+        try:
+            first, second = int(fields[1]), int(fields[2])
+            values = [float(v) for v in fields[3:]]
+        except ValueError:
+            raise InputError(f"{path}:{number}: malformed number in '{line.strip()}'") from None
+        if not all(np.isfinite(values)):
+            raise InputError(f"{path}:{number}: non-finite value")
+        if tag == "ODOMETRY":
+            if max_steps is not None and len(increments) >= max_steps:
+                break
+            if pose_key is not None and first != pose_key:
                 raise InputError(
-                    f"{path}:{number}: unknown tag '{tag}' (expected ODOMETRY or LANDMARK)"
+                    f"{path}:{number}: odometry starts from pose {first} but the last pose is {pose_key}"
                 )
-            if len(fields) != expected:
+            c = values[3:]
+            cov = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]])
+            if np.any(np.linalg.eigvalsh(cov) <= 0):
+                raise InputError(f"{path}:{number}: odometry covariance is not positive definite")
+            increments.append(values[:3])
+            covariances.append(cov)
+            pose_key = second
+        else:
+            current = pose_key if pose_key is not None else first
+            if first != current:
                 raise InputError(
-                    f"{path}:{number}: {tag} needs {expected - 1} fields after the tag, got {len(fields) - 1}"
+                    f"{path}:{number}: landmark seen from pose {first} but the last pose is {current}"
                 )
-            try:
-                first, second = int(fields[1]), int(fields[2])
-                values = [float(v) for v in fields[3:]]
-            except ValueError:
-                raise InputError(f"{path}:{number}: malformed number in '{line.strip()}'") from None
-            if not all(np.isfinite(values)):
-                raise InputError(f"{path}:{number}: non-finite value")
-            if tag == "ODOMETRY":
-                if max_steps is not None and len(increments) >= max_steps:
-                    break
-                if pose_key is not None and first != pose_key:
-                    raise InputError(
-                        f"{path}:{number}: odometry starts from pose {first} but the last pose is {pose_key}"
-                    )
-                c = values[3:]
-                cov = np.array([[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]])
-                if np.any(np.linalg.eigvalsh(cov) <= 0):
-                    raise InputError(
-                        f"{path}:{number}: odometry covariance is not positive definite"
-                    )
-                increments.append(values[:3])
-                covariances.append(cov)
-                pose_key = second
-            else:
-                current = pose_key if pose_key is not None else first
-                if first != current:
-                    raise InputError(
-                        f"{path}:{number}: landmark seen from pose {first} but the last pose is {current}"
-                    )
-                cov = np.array([[values[2], values[3]], [values[3], values[4]]])
-                if np.any(np.linalg.eigvalsh(cov) <= 0):
-                    raise InputError(
-                        f"{path}:{number}: landmark covariance is not positive definite"
-                    )
-                sightings.setdefault(len(increments), []).append((second, values))
+            cov = np.array([[values[2], values[3]], [values[3], values[4]]])
+            if np.any(np.linalg.eigvalsh(cov) <= 0):
+                raise InputError(f"{path}:{number}: landmark covariance is not positive definite")
+            sightings.setdefault(len(increments), []).append((second, values))
     if not increments:
         raise InputError(f"{path}: no ODOMETRY lines")
     scans = []

@@ -236,7 +236,9 @@ def test_irregular_printed_times_gap_and_duplicate_rows(tmp_path: Path) -> None:
     )
     odometry = [f"{t:.3f} 0.2 0.1" for t in times]
     folder = write_folder(tmp_path / "d", odometry, [f"{base + 0.1:.3f} 72 2.0 0.1"])
-    sequence = load_mrclam(folder, 1, UtiasOptions(odometry_noise="white"))
+    # one dropped row of 31 here: accepted explicitly (the default 1 % would refuse it)
+    options = UtiasOptions(odometry_noise="white", max_dropped_fraction=0.05)
+    sequence = load_mrclam(folder, 1, options)
     assert sequence.metadata["time_source"] == "printed"
     assert sequence.metadata["counts"]["odometry_time_not_increasing"] == 1
     gaps = sequence.metadata["odometry_gaps"]
@@ -244,6 +246,8 @@ def test_irregular_printed_times_gap_and_duplicate_rows(tmp_path: Path) -> None:
     stream = list(sequence.measurements())
     assert stream[0].t == pytest.approx(0.0)
     assert sum(isinstance(m, Odometry) for m in stream) == 30
+    with pytest.raises(InputError, match=r"do not increase in time .*Robot1_Odometry\.dat:\d+"):
+        load_mrclam(folder, 1, UtiasOptions(odometry_noise="white"))
 
 
 def test_vicon_position_glitch_is_detected_and_leaves_the_truth(tmp_path: Path) -> None:
