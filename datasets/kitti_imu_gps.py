@@ -51,6 +51,7 @@ from datasets.rotations import quat_wxyz_from_matrix
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.simulation.imu import gtsam_data_folder
 from datasets.state import GroundTruth, StateHistory
+from datasets.text_files import text_lines
 
 IMU_FILE = "KittiEquivBiasedImu.txt"
 GPS_FILE = "KittiGps_converted.txt"
@@ -106,9 +107,7 @@ def describe() -> list[str]:
 
 def read_metadata(path: Path) -> dict[str, float]:
     """The metadata's named values; ``InputError`` naming the file and problem."""
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    lines = [line.split() for line in path.read_text().splitlines() if line.strip()]
+    lines = [line.split() for _, line in text_lines(path, "KITTI metadata file") if line.strip()]
     if len(lines) < 2 or lines[0] != list(METADATA_FIELDS) or len(lines[1]) != len(METADATA_FIELDS):
         raise InputError(
             f"{path}:1: expected the header {' '.join(METADATA_FIELDS)} and one line of {len(METADATA_FIELDS)} values"
@@ -121,9 +120,7 @@ def read_metadata(path: Path) -> dict[str, float]:
 
 
 def _read_table(path: Path, header: str, separator: str | None, columns: int) -> np.ndarray:
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    lines = path.read_text().splitlines()
+    lines = [line for _, line in text_lines(path, "KITTI data file")]
     if not lines or lines[0].strip() != header:
         raise InputError(f"{path}:1: expected the header '{header}'")
     rows = []

@@ -110,7 +110,7 @@ def simulate_command(
         str, typer.Argument(help="scenario name, e.g. aghili-rover (see `workbench list`)")
     ],
     out: Annotated[Path, typer.Option("--out", help="output folder (bag path for lidar-corridor)")],
-    seed: Annotated[int, typer.Option("--seed", help="random seed")] = 0,
+    seed: Annotated[int, typer.Option("--seed", help="random seed", min=0)] = 0,
     data: DataOption = None,
     format: Annotated[
         str, typer.Option("--format", help="lidar-corridor only: ros1 or ros2")
@@ -135,7 +135,7 @@ def run_command(
     estimator: Annotated[str, typer.Argument(help="estimator name (see `workbench list`)")],
     dataset: Annotated[str, typer.Argument(help="dataset name, e.g. sim:aghili-rover")],
     out: Annotated[Path, typer.Option("--out", help="run folder to write")],
-    seed: Annotated[int, typer.Option("--seed", help="random seed of the dataset")] = 0,
+    seed: Annotated[int, typer.Option("--seed", help="random seed of the dataset", min=0)] = 0,
     config: Annotated[
         Path | None, typer.Option("--config", help="estimator options as YAML")
     ] = None,

@@ -88,12 +88,20 @@ def replaced_as_a_whole(folder: Path) -> Iterator[Path]:
     """Yield a hidden sibling to write ``folder``'s new content into; on a normal exit it
     takes ``folder``'s place (module docstring), on an error it is removed and ``folder``
     is left as it was."""
+    from datasets.errors import InputError
+
     folder = Path(folder)
-    folder.parent.mkdir(parents=True, exist_ok=True)
+    if folder.name in ("", ".", ".."):
+        raise InputError(
+            f"--out '{folder}': name a folder of its own (it would replace the current folder "
+            "or its parent)"
+        )
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise InputError(f"--out {folder}: cannot create its parent ({error.strerror})") from None
     recover(folder)
     if folder.exists() and not folder.is_dir():
-        from datasets.errors import InputError
-
         raise InputError(f"--out {folder}: exists and is not a folder")
     staging = _sibling(folder, _PARTIAL)
     shutil.rmtree(staging, ignore_errors=True)

@@ -28,6 +28,7 @@ from datasets.bags.gps import geodetic_to_enu
 from datasets.bags.pointcloud2 import decode_pointcloud2
 from datasets.errors import InputError
 from datasets.measurements import GpsFix, ImuSample, Measurement, PointCloud
+from datasets.text_files import check_regular_file
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 IMU = "sensor_msgs/msg/Imu"
@@ -91,6 +92,10 @@ def open_bag(path: str | Path):
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such bag file or folder")
+    if not path.is_dir():
+        check_regular_file(path, "bag file")  # a FIFO given as a bag would block the reader
+    elif not (path / "metadata.yaml").is_file():
+        raise InputError(f"{path}: a ROS 2 bag folder needs its metadata.yaml, found none")
     try:
         reader = AnyReader([path], default_typestore=_default_typestore(path))
         reader.open()

@@ -154,7 +154,9 @@ def register(app: typer.Typer) -> None:
         suite: Annotated[str, typer.Argument(help=f"suite: {', '.join(SUITES)}")] = DEFAULT_SUITE,
         runs: Annotated[
             int | None,
-            typer.Option("--runs", help="Monte Carlo runs (seeds) per pair; default: the suite's"),
+            typer.Option(
+                "--runs", help="Monte Carlo runs (seeds) per pair; default: the suite's", min=1
+            ),
         ] = None,
         out: Annotated[
             Path | None, typer.Option("--out", help="output folder (default: runs/<suite>)")

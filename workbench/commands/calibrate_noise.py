@@ -37,7 +37,7 @@ def register(app: typer.Typer) -> None:
             Path | None,
             typer.Option("--out", help="write the model as YAML (--data odometry_noise=FILE)"),
         ] = None,
-        seed: Annotated[int, typer.Option("--seed", help="dataset seed (simulations)")] = 0,
+        seed: Annotated[int, typer.Option("--seed", help="dataset seed (simulations)", min=0)] = 0,
     ) -> None:
         """Fit the odometry noise model of DATASET and print it with its check at other
         window lengths."""

@@ -1,19 +1,25 @@
-"""``workbench metrics ate|rpe``: evaluate any pair of TUM files and print JSON."""
+"""``workbench metrics ate|rpe``: evaluate any pair of trajectory files (TUM, or KITTI poses
+paired by index) and print JSON."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from datasets.errors import InputError
-from datasets.trajectory_io import read_tum
+from datasets.trajectory_io import read_kitti, read_tum
 
 ALIGNMENTS = ("se3", "sim3", "se2", "none")
 
-RefOption = Annotated[Path, typer.Option("--ref", help="reference trajectory (TUM)")]
-EstOption = Annotated[Path, typer.Option("--est", help="estimated trajectory (TUM)")]
+RefOption = Annotated[
+    Path, typer.Option("--ref", help="reference trajectory (TUM; .kitti: KITTI poses)")
+]
+EstOption = Annotated[
+    Path, typer.Option("--est", help="estimated trajectory (TUM; .kitti: KITTI poses)")
+]
 AlignOption = Annotated[str, typer.Option("--align", help="alignment: se3, sim3, se2 or none")]
 MaxDiffOption = Annotated[
     float, typer.Option("--max-diff", help="max time difference when pairing stamps [s]")
@@ -23,6 +29,19 @@ MaxDiffOption = Annotated[
 def _check_align(align: str) -> None:
     if align not in ALIGNMENTS:
         raise InputError(f"--align must be one of {', '.join(ALIGNMENTS)}, got '{align}'")
+
+
+def _check_positive(name: str, value: float) -> None:
+    if not (value > 0 and math.isfinite(value)):
+        raise InputError(f"{name} must be a positive number, got {value}")
+
+
+def read_trajectory(path: Path):
+    """A TUM file, or KITTI poses (``.kitti``: 3x4 a line, no times: the pose index is
+    the time, so two KITTI files pair pose by pose)."""
+    if Path(path).suffix.lower() == ".kitti":
+        return read_kitti(path)
+    return read_tum(path)
 
 
 def register(app: typer.Typer) -> None:
@@ -39,7 +58,10 @@ def register(app: typer.Typer) -> None:
         from workbench.run_folder import dump_json
 
         _check_align(align)
-        report = ate_report(read_tum(ref), read_tum(est), align=align, max_diff_s=max_diff)
+        _check_positive("--max-diff", max_diff)
+        report = ate_report(
+            read_trajectory(ref), read_trajectory(est), align=align, max_diff_s=max_diff
+        )
         typer.echo(dump_json(report), nl=False)
 
     @metrics_app.command("rpe")
@@ -60,10 +82,17 @@ def register(app: typer.Typer) -> None:
         from workbench.run_folder import dump_json
 
         _check_align(align)
+        _check_positive("--max-diff", max_diff)
+        _check_positive("--delta", delta)
         if unit not in ("frames", "m"):
             raise InputError(f"--unit must be frames or m, got '{unit}'")
         report = rpe_report(
-            read_tum(ref), read_tum(est), delta=delta, unit=unit, align=align, max_diff_s=max_diff
+            read_trajectory(ref),
+            read_trajectory(est),
+            delta=delta,
+            unit=unit,
+            align=align,
+            max_diff_s=max_diff,
         )
         typer.echo(dump_json(report), nl=False)
 

@@ -25,7 +25,7 @@ def register(app: typer.Typer) -> None:
                 "--set", help="anchors=N (3), step_s=S (10), landmarks=K (3), window=W segments (3)"
             ),
         ] = None,
-        seed: Annotated[int, typer.Option("--seed")] = 0,
+        seed: Annotated[int, typer.Option("--seed", help="dataset seed", min=0)] = 0,
     ) -> None:
         """Aghili eqs. (22), (27), (30), (32) along the ground-truth trajectory."""
         from filters.aghili.observability import observability_along_trajectory
@@ -37,13 +37,22 @@ def register(app: typer.Typer) -> None:
             raise InputError(
                 f"observability --set: unknown keys {sorted(unknown)} (known: {', '.join(KEYS)})"
             )
-        try:
-            anchors_count = int(options.get("anchors", 3))
-            step_s = float(options.get("step_s", 10.0))
-            landmark_count = int(options.get("landmarks", 3))
-            window = int(options.get("window", 3))
-        except ValueError as error:
-            raise InputError(f"observability --set: {error}") from None
+
+        def number(key: str, default: float, kind: type) -> float:
+            text = options.get(key)
+            if text is None:
+                return kind(default)
+            try:
+                return kind(text)
+            except ValueError:
+                raise InputError(
+                    f"observability --set {key}={text}: expected {'an integer' if kind is int else 'a number'}"
+                ) from None
+
+        anchors_count = number("anchors", 3, int)
+        step_s = number("step_s", 10.0, float)
+        landmark_count = number("landmarks", 3, int)
+        window = number("window", 3, int)
         if anchors_count < 1 or step_s <= 0 or landmark_count < 0 or window < 1:
             raise InputError(
                 "observability --set: need anchors >= 1, step_s > 0, landmarks >= 0, window >= 1"
