@@ -254,7 +254,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         command.main(args=argv, prog_name="workbench", standalone_mode=False)
     except InputError as error:
-        print(f"error: {error}", file=sys.stderr)
+        # one line whatever the message holds (a library's multi-line text folded)
+        print(f"error: {' '.join(str(error).split())}", file=sys.stderr)
         return 2
     except typer.Exit as exit_request:
         return int(exit_request.exit_code or 0)

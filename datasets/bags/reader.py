@@ -102,7 +102,9 @@ def open_bag(path: str | Path):
     except InputError:
         raise
     except Exception as error:  # rosbags raises several types for malformed or truncated bags
-        raise InputError(f"{path}: cannot open bag ({type(error).__name__}: {error})") from None
+        # rosbags' YAML errors span several lines: the first says what is wrong
+        first = str(error).strip().splitlines()[0] if str(error).strip() else ""
+        raise InputError(f"{path}: cannot open bag ({type(error).__name__}: {first})") from None
     try:
         yield reader
     finally:
