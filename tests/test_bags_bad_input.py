@@ -241,3 +241,28 @@ def test_cli_error_is_one_line_and_earlier_results_stay_valid(tmp_path, syntheti
     assert (out / "frontend" / "metrics.json").read_text() == before
     json.loads(before)
     assert (out / "table.md").read_text() == table
+
+
+def test_a_damaged_mcap_reading_fewer_clouds_than_its_index_is_loud(tmp_path) -> None:
+    """64 KiB zeroed in the middle of a ROS 2 mcap bag: the reader skips what the damaged
+    chunk held; fewer messages than the index lists is an error beyond the threshold, a
+    counted warning line below it."""
+    from pathlib import Path
+
+    from datasets.bags.source import load_bag
+    from datasets.synthetic_lidar import write_lidar_bag
+
+    bag = Path(
+        write_lidar_bag(tmp_path / "damaged", 2, "ros2", {"duration_s": "4", "storage": "mcap"})
+    )
+    chunk = next(bag.glob("*.mcap"))
+    data = bytearray(chunk.read_bytes())
+    middle = len(data) // 2
+    data[middle : middle + 65536] = bytes(65536)
+    chunk.write_bytes(bytes(data))
+    with pytest.raises(InputError, match=r"read \d+ of the 40 messages its index lists on /points"):
+        for _ in load_bag(str(bag), 0, {"kiss.max_num_threads": "1"}).measurements():
+            pass
+    accepted = load_bag(str(bag), 0, {"kiss.max_num_threads": "1", "max_missing_fraction": "0.5"})
+    for _ in accepted.measurements():
+        pass

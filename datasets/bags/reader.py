@@ -47,12 +47,15 @@ class ReadReport:
         examples: the first skip of each ``(topic, reason)`` as a message naming the time.
         nonfinite_points: NaN/inf points dropped from clouds.
         messages: messages read per topic.
+        missing: topic -> (messages read, messages its index lists) where fewer were read
+            (a damaged bag whose index promises more than its chunks hold).
     """
 
     skipped: Counter = field(default_factory=Counter)
     examples: dict[tuple[str, str], str] = field(default_factory=dict)
     nonfinite_points: int = 0
     messages: Counter = field(default_factory=Counter)
+    missing: dict[str, tuple[int, int]] = field(default_factory=dict)
 
     def skip(self, topic: str, reason: str, stamp_s: float, detail: str = "") -> None:
         key = (topic, reason)
@@ -63,9 +66,14 @@ class ReadReport:
 
     def lines(self) -> list[str]:
         """One line per skip kind: ``N x topic: reason (first at t=...)``."""
-        return [
+        lines = [
             f"skipped {count} x {self.examples[key]}" for key, count in sorted(self.skipped.items())
         ]
+        lines += [
+            f"read {read} of the {indexed} messages its index lists on {topic}"
+            for topic, (read, indexed) in sorted(self.missing.items())
+        ]
+        return lines
 
 
 @dataclass(frozen=True)
@@ -248,6 +256,7 @@ class ReadSettings:
     gps_origin: tuple[float, float, float] | None = None
     gps_sigma_m: float = 1.0
     reorder_window_s: float = 1.0
+    max_missing_fraction: float = 0.01
 
 
 def convert(
@@ -362,3 +371,24 @@ def read_stream(
         while heap:
             emitted, _, out_topic, out = heapq.heappop(heap)
             yield out_topic, out
+        _check_counts(path, reader, topics, settings, report)
+
+
+def _check_counts(path: Path, reader, topics: list[str], settings: ReadSettings, report) -> None:
+    """Messages read per topic against the bag's index, once the whole bag was read: fewer
+    is a warning line in ``report``, and an ``InputError`` beyond
+    ``settings.max_missing_fraction`` (the reader silently skips what a damaged chunk held:
+    a mcap bag with 64 KiB zeroed read 78 of its 80 clouds)."""
+    for topic in topics:
+        connection = reader.topics.get(topic)
+        indexed = int(connection.msgcount) if connection is not None else 0
+        read = int(report.messages[topic])
+        if read >= indexed:
+            continue
+        report.missing[topic] = (read, indexed)
+        if indexed - read > settings.max_missing_fraction * indexed:
+            raise InputError(
+                f"{path}: read {read} of the {indexed} messages its index lists on {topic} "
+                f"(damaged bag?); more than max_missing_fraction={settings.max_missing_fraction}"
+                " (raise it to accept)"
+            )

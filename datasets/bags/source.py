@@ -61,6 +61,13 @@ class BagOptions(LidarSourceOptions):
     model_config = ConfigDict(extra="forbid")
 
     lidar_topic: str | None = Field(None, description="PointCloud2 topic (default: the only one)")
+    max_missing_fraction: float = Field(
+        0.01,
+        ge=0,
+        le=1,
+        description="fewer messages read on a topic than the bag's index lists is a warning; "
+        "more than this fraction missing is an error (a damaged bag)",
+    )
     imu_topic: str | None = Field(None, description="Imu topic (default: the only one, if any)")
     ground_truth_topic: str | None = Field(
         None, description="Odometry/PoseStamped ground-truth topic (default: the only one)"
@@ -240,6 +247,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         gps_sigma_m=settings.gps_sigma_m,
         reorder_window_s=settings.reorder_window_s,
         lidar_to_body=extrinsic_matrix(settings.lidar_to_body),
+        max_missing_fraction=settings.max_missing_fraction,
     )
     front_end = LidarFrontEnd(
         FrontEndSettings(
