@@ -522,7 +522,7 @@ CASES: list[tuple[str, Builder, str]] = [
     ("bag truncated", _synthetic_bag_then(_truncate), "corridor"),
     ("bag missing lidar topic", _synthetic_bag_then(lambda b: ["--lidar-topic", "/nope"]), "/nope"),
     ("bag missing truth topic", _synthetic_bag_then(lambda b: ["--gt-topic", "/truth"]), "/truth"),
-    ("bag unknown estimator", _synthetic_bag_then(lambda b: ["--estimators", "nope"]), "nope"),
+    ("bag unknown estimator", _synthetic_bag_then(lambda b: ["--estimator", "nope"]), "nope"),
     (
         "bag bad kiss option",
         _synthetic_bag_then(lambda b: ["--data", "kiss.voxel_size_m=-1"]),

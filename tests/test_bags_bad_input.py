@@ -215,7 +215,7 @@ def test_cli_error_is_one_line_and_earlier_results_stay_valid(tmp_path, syntheti
                 str(synthetic),
                 "--out",
                 str(out),
-                "--estimators",
+                "--estimator",
                 "dead-reckoning",
                 "--no-plots",
                 "--data",

@@ -13,7 +13,7 @@ from workbench.registry import ESTIMATORS
 from workbench.reporting import write_report
 from workbench.results.consistency import TABLE_BLOCKS
 from workbench.results.runs import load_runs
-from workbench.suites import ALL_ESTIMATORS, CIRCLE_CALIBRATION, LOOP_CALIBRATION, Suite
+from workbench.suite_files import get_suite
 from workbench.sweep import run_sweep
 from workbench.sweep.backends import LocalBackend
 from workbench.sweep.plan import plan_sweep
@@ -29,11 +29,12 @@ def _shortened(spec, duration_s: str):
 @pytest.fixture(scope="module")
 def calibration_table(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, str]]:
     out = tmp_path_factory.mktemp("calibration")
-    suite = Suite(
-        "calibration-small",
-        "test",
-        datasets=(_shortened(CIRCLE_CALIBRATION, "5"), _shortened(LOOP_CALIBRATION, "10")),
-        estimators=ALL_ESTIMATORS,
+    full = get_suite("calibration")
+    circle, loop = full.datasets
+    suite = replace(
+        full,
+        name="calibration-small",
+        datasets=(_shortened(circle, "5"), _shortened(loop, "10")),
         default_runs=RUNS,
     )
     backend = LocalBackend(2)

@@ -10,6 +10,8 @@ import importlib
 import os
 import sys
 import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -18,11 +20,13 @@ from typer.exceptions import TyperException
 
 from datasets.errors import InputError
 from datasets.options import parse_assignments
+from workbench.completion import dataset_names, estimator_names
+from workbench.estimator_settings import settings_by_estimator
 from workbench.plot_formats import parse_plot_formats
 from workbench.registry import DATASETS, ESTIMATORS
 
 app = typer.Typer(
-    add_completion=False,
+    add_completion=True,
     no_args_is_help=True,
     help="Compare SLAM filters and smoothers on the same measurements.",
     pretty_exceptions_enable=False,
@@ -61,46 +65,121 @@ def _main_options(
 
 
 SetOption = Annotated[
-    list[str] | None, typer.Option("--set", help="estimator option key=value (repeatable)")
+    list[str] | None,
+    typer.Option("--set", help="estimator option key=value or ESTIMATOR.key=value (repeatable)"),
 ]
 DataOption = Annotated[
     list[str] | None, typer.Option("--data", help="dataset option key=value (repeatable)")
 ]
 
 
-@app.command("list")
-def list_command(
-    verbose: Annotated[
-        bool, typer.Option("--verbose", "-v", help="options of each dataset")
-    ] = False,
-) -> None:
-    """List datasets and estimators, one line each."""
-    typer.echo("datasets:")
+@dataclass(frozen=True)
+class _Listed:
+    """One line of ``workbench list``: a name, its summary, and how to get its options."""
+
+    section: str
+    name: str
+    summary: str
+    options: Callable[[], list[str]]
+
+
+def _block_of(lines: list[str], name: str, names: tuple[str, ...]) -> list[str]:
+    """The part of a family's option lines about ``name`` (the simulator describes its
+    scenarios one after the other, each headed ``NAME: ...``); all of them otherwise."""
+    if len(names) < 2:
+        return lines
+    starts = [i for i, line in enumerate(lines) if line.startswith(f"{name}: ")]
+    if not starts:
+        return lines
+    end = next(
+        (i for i in range(starts[0] + 1, len(lines)) if not lines[i].startswith(" ")), len(lines)
+    )
+    return lines[starts[0] : end]
+
+
+def _listed() -> list[_Listed]:
+    from datasets.options import describe_model
+    from workbench.suite_files import builtin_suites, get_suite
+
+    items = []
     for entry in DATASETS:
         names = entry.examples or (
             (entry.prefix + (f":{entry.argument}" if entry.argument else "")),
         )
         for name in names:
-            typer.echo(f"  {name:<42} {entry.summary}")
-        if verbose:
-            for line in entry.describe():
-                typer.echo(f"      {line}")
-    typer.echo("simulate-only scenarios (workbench simulate NAME):")
-    typer.echo(
-        f"  {'lidar-corridor':<42} synthetic lidar bag (ROS 1/ROS 2) of a corridor world, read back as bag:PATH"
+            items.append(
+                _Listed(
+                    "datasets",
+                    name,
+                    entry.summary,
+                    lambda entry=entry, name=name, names=names: _block_of(
+                        entry.describe(), name, names
+                    ),
+                )
+            )
+
+    def lidar_corridor_options() -> list[str]:
+        from datasets.synthetic_lidar import describe
+
+        return describe()
+
+    items.append(
+        _Listed(
+            "simulate-only scenarios (workbench simulate NAME)",
+            "lidar-corridor",
+            "synthetic lidar bag (ROS 1/ROS 2) of a corridor world, read back as bag:PATH",
+            lidar_corridor_options,
+        )
     )
-    if verbose:
-        from datasets.synthetic_lidar import describe as describe_lidar_corridor
-
-        for line in describe_lidar_corridor():
-            typer.echo(f"      {line}")
-    typer.echo("estimators:")
     for entry in ESTIMATORS:
-        typer.echo(f"  {entry.name:<42} {entry.summary}")
-        if verbose:
-            from datasets.options import describe_model
+        items.append(
+            _Listed(
+                "estimators",
+                entry.name,
+                entry.summary,
+                lambda entry=entry: describe_model(entry.load().Config),
+            )
+        )
+    for name in builtin_suites():
+        items.append(
+            _Listed(
+                "suites (workbench bench NAME; workbench suite NAME prints its YAML)",
+                name,
+                get_suite(name).description,
+                lambda name=name: [
+                    f"{spec.title}: {spec.name}" for spec in get_suite(name).datasets
+                ],
+            )
+        )
+    return items
 
-            for line in describe_model(entry.load().Config):
+
+@app.command("list")
+def list_command(
+    name: Annotated[
+        str | None,
+        typer.Argument(help="only the entries whose name contains this, with their options"),
+    ] = None,
+    verbose: Annotated[
+        bool, typer.Option("--verbose", "-v", help="the options of every entry")
+    ] = False,
+) -> None:
+    """List datasets, estimators and suites, one line each (with NAME: those matching it, and their options)."""
+    items = _listed()
+    if name is not None:
+        exact = [item for item in items if item.name == name]
+        items = exact or [item for item in items if name in item.name]
+        if not items:
+            known = ", ".join(item.name for item in _listed())
+            raise InputError(f"list: nothing is called '{name}' or contains it (known: {known})")
+    section = None
+    for item in items:
+        if item.section != section:
+            section = item.section
+            typer.echo(f"{section}:")
+        typer.echo(f"  {item.name:<42} {item.summary}")
+        if verbose or name is not None:
+            for line in item.options():
                 typer.echo(f"      {line}")
 
 
@@ -132,8 +211,16 @@ def simulate_command(
 
 @app.command("run")
 def run_command(
-    estimator: Annotated[str, typer.Argument(help="estimator name (see `workbench list`)")],
-    dataset: Annotated[str, typer.Argument(help="dataset name, e.g. sim:aghili-rover")],
+    estimator: Annotated[
+        str,
+        typer.Argument(
+            help="estimator name (see `workbench list`)", autocompletion=estimator_names
+        ),
+    ],
+    dataset: Annotated[
+        str,
+        typer.Argument(help="dataset name, e.g. sim:aghili-rover", autocompletion=dataset_names),
+    ],
     out: Annotated[Path, typer.Option("--out", help="run folder to write")],
     seed: Annotated[int, typer.Option("--seed", help="random seed of the dataset", min=0)] = 0,
     config: Annotated[
@@ -158,7 +245,7 @@ def run_command(
         dataset=dataset,
         seed=seed,
         config_file=config,
-        overrides=tuple(parse_assignments(set_ or [], "--set").items()),
+        overrides=tuple(settings_by_estimator(set_ or [], [estimator])[estimator].items()),
         data_options=tuple(parse_assignments(data or [], "--data").items()),
     )
     with Progress(
@@ -226,7 +313,12 @@ def rerun_command(
 
 @app.command("config")
 def config_command(
-    estimator: Annotated[str, typer.Argument(help="estimator name (see `workbench list`)")],
+    estimator: Annotated[
+        str,
+        typer.Argument(
+            help="estimator name (see `workbench list`)", autocompletion=estimator_names
+        ),
+    ],
 ) -> None:
     """Print an estimator's default options as YAML (edit it, pass it with --config)."""
     import yaml

@@ -1,23 +1,14 @@
 """Benchmark suites: which datasets (with their ``--data`` options) meet which estimators
 (with their ``--set`` options), and how many Monte Carlo runs by default.
 
+The suites themselves are YAML files (``workbench.suite_files``: the built-in ones in
+``workbench/suite_library/``: ``tiny`` for tests, ``quick`` the README's default, ``paper``,
+``consistency``, ``calibration``); this module holds what a suite is once read.
+
 A suite names what it *wants*; ``available_parts`` keeps what the registry has today and
 returns a note for everything else, so a suite written for every estimator still runs while
 some are missing (the note says which). Whether an estimator can run on a dataset (sensors,
 dimension) is decided later, per pair, by ``workbench.sweep`` with ``runner.is_compatible``.
-
-Suites:
-    ``tiny``         tests: seconds. Two very short simulated scenarios, dead reckoning and
-                     one fast filter.
-    ``quick``        the README's default (``workbench bench``): the simulated scenarios,
-                     shortened, plus the real data inside the gtsam wheel (Victoria Park,
-                     KITTI IMU/GPS), shortened through their ``--data`` options, every
-                     estimator; under 2 minutes with 3 runs on 2 cores.
-    ``paper``        the two papers' scenarios at full length, Victoria Park, KITTI IMU/GPS
-                     and the synthetic lidar bag, every estimator.
-    ``consistency``  Monte Carlo NEES: the simulated scenarios (the rover's first minute,
-                     the whole loop, the loop with a random speed, half a minute of the
-                     circle), 50 runs.
 """
 
 from __future__ import annotations
@@ -60,9 +51,9 @@ class DatasetSpec:
         seeded: False for a recording: it is run once (seed 0) whatever ``--runs`` says,
             since more runs would repeat the same measurements (for ``kitti-imu-gps`` the seed
             only picks which GPS fixes are held out).
-        generate: ``"module:function"`` writing the file the dataset reads, called as
-            ``function(path: Path)`` with the path the name points to, before the sweep,
-            when that file does not exist yet (the synthetic lidar bag).
+        generate: the name of a ``GENERATORS`` entry writing the file the dataset reads,
+            called with the path the name points to before the sweep, when that file does
+            not exist yet (the synthetic lidar bag).
         left_out: ``(estimator name, reason)`` pairs this suite does not run on this
             dataset although they could (too slow for the suite's budget); the table says
             n/a with the reason.
@@ -135,19 +126,6 @@ class Suite:
     default_runs: int = 3
 
 
-# Every estimator the workbench is meant to have, in table order: the lower bound first,
-# then the filters, then the smoothers (the reference).
-ALL_ESTIMATORS: tuple[EstimatorSpec, ...] = (
-    EstimatorSpec("dead-reckoning"),
-    EstimatorSpec("aghili"),
-    EstimatorSpec("sensor-based"),
-    EstimatorSpec("ekf-slam"),
-    EstimatorSpec("smoother-isam2"),
-    EstimatorSpec("smoother-fixed-lag"),
-    EstimatorSpec("smoother-batch"),
-)
-
-
 def write_corridor_bag(path: Path) -> None:
     """The synthetic lidar corridor as a ROS 1 bag at ``path`` (seed 0, default options),
     with its corner sidecar beside it.
@@ -172,172 +150,8 @@ def write_corridor_bag(path: Path) -> None:
     shutil.rmtree(scratch, ignore_errors=True)
 
 
-def gyro_walk_options(walk: str) -> tuple[tuple[str, Options], ...]:
-    """Every gyro-driven estimator told the body-velocity random walk ``walk`` ("[forward,
-    lateral]" [m/s/sqrt(s)]) and, for the sensor-based filter, static landmarks."""
-    return (
-        ("dead-reckoning", (("gyro_velocity_sigma_m_s2", walk),)),
-        ("ekf-slam", (("acceleration_density", walk),)),
-        ("sensor-based", (("sigma_velocity_m_s", walk), ("sigma_landmark_m", "0"))),
-        ("smoother-isam2", (("planar_velocity_walk_m_s2", walk),)),
-        ("smoother-fixed-lag", (("planar_velocity_walk_m_s2", walk),)),
-        ("smoother-batch", (("planar_velocity_walk_m_s2", walk),)),
-    )
-
-
-MATCHED_LOOP_WALK = "[0.01, 0.0025]"
-"""The model-matched loop's body-velocity walk: half the calibration's, so that a 120 s
-walk keeps away from zero speed and from the end of the path on every seed (checked for
-seeds 0-49 over 100 s)."""
-MATCHED_LOOP_DATA: Options = (
-    ("duration_s", "100"),
-    ("speed_profile", "random"),
-    ("speed_reversion_s", "null"),
-    ("speed_walk_m_s_sqrt_s", "0.01"),
-    ("lateral_walk_m_s_sqrt_s", "0.0025"),
-)
-
-SUITES: dict[str, Suite] = {
-    suite.name: suite
-    for suite in (
-        Suite(
-            "tiny",
-            "for tests: two very short simulated scenarios, dead reckoning and one fast filter (seconds)",
-            datasets=(
-                DatasetSpec("sim:circle", (("duration_s", "4"),)),
-                DatasetSpec("sim:guerreiro-loop", (("duration_s", "8"),)),
-            ),
-            estimators=(EstimatorSpec("dead-reckoning"), EstimatorSpec("ekf-slam")),
-            default_runs=2,
-        ),
-        Suite(
-            "quick",
-            "the default: shortened simulated scenarios and the gtsam wheel's real data, every estimator (< 2 min, 3 runs, 2 cores)",
-            datasets=(
-                DatasetSpec("sim:aghili-rover", (("duration_s", "10"),)),
-                DatasetSpec("sim:guerreiro-loop", (("duration_s", "20"),)),
-                DatasetSpec(
-                    "victoria-park",
-                    (("max_steps", "1000"),),
-                    seeded=False,
-                ),
-                DatasetSpec("kitti-imu-gps", (("duration_s", "60"),), seeded=False),
-            ),
-            estimators=ALL_ESTIMATORS,
-            default_runs=3,
-        ),
-        Suite(
-            "paper",
-            "the papers' scenarios at full length, Victoria Park, KITTI IMU/GPS, the synthetic lidar bag; every estimator",
-            datasets=(
-                DatasetSpec("sim:aghili-rover"),
-                DatasetSpec(
-                    "sim:guerreiro-loop",
-                    (("ids", "false"),),
-                    label="sim:guerreiro-loop (ids=false)",
-                    # the paper's own filter tuning, on the laser's own noise
-                    estimator_options=(("sensor-based", (("tuning", "paper"),)),),
-                ),
-                DatasetSpec(
-                    "victoria-park",
-                    (("ids", "false"),),
-                    label="victoria-park (ids=false)",
-                    seeded=False,
-                ),
-                DatasetSpec("kitti-imu-gps", seeded=False),
-                DatasetSpec(
-                    "bag:{data}/lidar-corridor.bag",
-                    label="bag:lidar-corridor",
-                    seeded=False,
-                    generate="workbench.suites:write_corridor_bag",
-                    # no surveyed corners in a bag: Aghili's anchors from their first sighting
-                    estimator_options=(("aghili", (("anchor_source", "first-observation"),)),),
-                ),
-            ),
-            estimators=ALL_ESTIMATORS,
-            default_runs=3,
-        ),
-        Suite(
-            "consistency",
-            "Monte Carlo NEES of the papers' scenarios at the papers' tunings and at model-matched "
-            "tunings, and the circle (50 runs)",
-            datasets=(
-                # the papers' tunings: every estimator's defaults (Aghili's adaptive R on)
-                DatasetSpec("sim:aghili-rover", (("duration_s", "60"),)),
-                DatasetSpec("sim:guerreiro-loop"),
-                # model-matched: Aghili's R the scans' own; the loop's motion drawn from the
-                # gyro-driven models (body-velocity random walk per axis) for 100 s, which every
-                # gyro-driven estimator is told
-                DatasetSpec(
-                    "sim:aghili-rover",
-                    (("duration_s", "60"),),
-                    label="sim:aghili-rover (model-matched)",
-                    estimator_options=(("aghili", (("adaptive_noise", "false"),)),),
-                ),
-                DatasetSpec(
-                    "sim:guerreiro-loop",
-                    MATCHED_LOOP_DATA,
-                    label="sim:guerreiro-loop (model-matched)",
-                    estimator_options=gyro_walk_options(MATCHED_LOOP_WALK),
-                ),
-                DatasetSpec("sim:circle", (("duration_s", "30"),)),
-            ),
-            estimators=ALL_ESTIMATORS,
-            default_runs=50,
-        ),
-    )
-}
-
-CIRCLE_CALIBRATION = DatasetSpec(
-    "sim:circle",
-    (("duration_s", "10"),),
-    label="sim:circle (calibration)",
-    # constant speed on a circle: the body velocity of the gyro-driven models is constant,
-    # so their velocity process noise is set near zero (the truth has none); Aghili's R is
-    # the scans' own (adaptive R estimates it from a window: its sampling error alone reads
-    # NIS 1.013, optimistic against a band of +-1.3 %, on this scenario)
-    estimator_options=(
-        ("aghili", (("adaptive_noise", "false"),)),
-        ("ekf-slam", (("acceleration_density", "0.001"),)),
-        ("sensor-based", (("sigma_velocity_m_s", "0.001"), ("sigma_landmark_m", "0"))),
-    ),
-)
-LOOP_VELOCITY_WALK = "[0.02, 0.005]"
-"""Body-velocity random walk [forward, lateral] of the calibration loop [m/s/sqrt(s)]."""
-LOOP_CALIBRATION = DatasetSpec(
-    "sim:guerreiro-loop",
-    (
-        ("duration_s", "20"),
-        ("speed_profile", "random"),
-        ("speed_reversion_s", "null"),
-        ("speed_walk_m_s_sqrt_s", "0.02"),
-        ("lateral_walk_m_s_sqrt_s", "0.005"),
-        ("landmark_noise", "cartesian"),
-    ),
-    label="sim:guerreiro-loop (calibration)",
-    # the body velocity is a random walk per axis (forward 0.02, lateral 0.005 m/s/sqrt(s):
-    # the vehicle slips a little), the laser noise Cartesian: every gyro-driven model is
-    # told exactly that
-    estimator_options=gyro_walk_options(LOOP_VELOCITY_WALK),
-)
-SUITES["calibration"] = Suite(
-    "calibration",
-    "the workbench's self-test: every estimator on short scenarios drawn exactly from its own "
-    "model (25 runs); a consistent estimator reads 'consistent' in every cell it fills",
-    datasets=(CIRCLE_CALIBRATION, LOOP_CALIBRATION),
-    estimators=ALL_ESTIMATORS,
-    default_runs=25,
-)
-
-DEFAULT_SUITE = "quick"
-
-
-def get_suite(name: str) -> Suite:
-    """The suite called ``name``; ``InputError`` listing the known ones otherwise."""
-    try:
-        return SUITES[name]
-    except KeyError:
-        raise InputError(f"unknown suite '{name}' (known: {', '.join(SUITES)})") from None
+GENERATORS: dict[str, Callable[[Path], None]] = {"lidar-corridor": write_corridor_bag}
+"""Files a suite can have written before its sweep (a dataset's ``generate``), by name."""
 
 
 def restrict(
@@ -371,11 +185,21 @@ def restrict(
     )
 
 
-def _resolve_callable(target: str) -> Callable[..., object]:
-    import importlib
+def with_settings(suite: Suite, settings: dict[str, dict[str, str]]) -> Suite:
+    """The suite with ``--set`` options added to the estimators they name (after the
+    suite's own). A changed estimator's label says what was set, so that its rows, figures
+    and run folders never pass for the suite's own."""
+    from dataclasses import replace
 
-    module_name, _, attribute = target.partition(":")
-    return getattr(importlib.import_module(module_name), attribute)
+    def changed(spec: EstimatorSpec) -> EstimatorSpec:
+        added = tuple(settings.get(spec.name, {}).items())
+        if not added:
+            return spec
+        return replace(
+            spec, overrides=spec.overrides + added, label=f"{spec.title} [{format_options(added)}]"
+        )
+
+    return replace(suite, estimators=tuple(changed(spec) for spec in suite.estimators))
 
 
 def prepare_dataset(spec: DatasetSpec, data_folder: Path) -> None:
@@ -386,7 +210,7 @@ def prepare_dataset(spec: DatasetSpec, data_folder: Path) -> None:
     path = Path(argument)
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-        _resolve_callable(spec.generate)(path)
+        GENERATORS[spec.generate](path)
 
 
 def available_parts(

@@ -31,6 +31,8 @@ import typer
 
 from datasets.errors import InputError
 from datasets.options import build_model, parse_assignments
+from workbench.completion import estimator_names
+from workbench.estimator_settings import settings_by_estimator
 from workbench.plot_formats import parse_plot_formats
 
 
@@ -194,32 +196,16 @@ def _status(text: str, limit: int = 160) -> str:
     return flat if len(flat) <= limit else flat[: limit - 3] + "..."
 
 
-def choose_estimators(requested: str | None, sequence) -> list[str]:
+def choose_estimators(requested: list[str] | None, sequence) -> list[str]:
     """The requested names (checked), or every registered estimator the sequence allows."""
     from workbench.registry import ESTIMATORS, estimator_entry
     from workbench.runner import is_compatible
 
     if requested:
-        names = [name.strip() for name in requested.split(",") if name.strip()]
-        for name in names:
+        for name in requested:
             estimator_entry(name)  # InputError listing the known ones
-        return names
+        return list(dict.fromkeys(requested))
     return [entry.name for entry in ESTIMATORS if is_compatible(entry.load(), sequence)]
-
-
-def estimator_overrides(assignments: list[str], names: list[str]) -> dict[str, dict[str, str]]:
-    """``["aghili.anchor_source=first-observation"]`` -> ``{"aghili": {"anchor_source": ...}}``."""
-    overrides: dict[str, dict[str, str]] = {name: {} for name in names}
-    for key, value in parse_assignments(assignments, "--set").items():
-        name, dot, option = key.partition(".")
-        if not dot or not option:
-            raise InputError(f"--set expects ESTIMATOR.key=value, got '{key}={value}'")
-        if name not in overrides:
-            raise InputError(
-                f"--set {key}: '{name}' is not among the estimators run ({', '.join(names)})"
-            )
-        overrides[name][option] = value
-    return overrides
 
 
 def bag_command(
@@ -228,7 +214,7 @@ def bag_command(
     lidar_topic: str | None,
     imu_topic: str | None,
     ground_truth_topic: str | None,
-    estimators: str | None,
+    estimators: list[str] | None,
     data: list[str],
     plots: bool,
     quiet: bool = False,
@@ -259,7 +245,7 @@ def bag_command(
     if settings.max_frames:
         lidar_messages = min(lidar_messages, settings.max_frames)
     names = choose_estimators(estimators, sequence)
-    overrides = estimator_overrides(settings_overrides or [], names)
+    overrides = settings_by_estimator(settings_overrides or [], names)
     disable = quiet or not sys.stderr.isatty()
 
     seconds = run_front_end(sequence, source, lidar_messages, disable)
@@ -359,10 +345,12 @@ def register(app: typer.Typer) -> None:
             str | None,
             typer.Option("--gt-topic", help="Odometry/PoseStamped ground-truth topic"),
         ] = None,
-        estimators: Annotated[
-            str | None,
+        estimator: Annotated[
+            list[str] | None,
             typer.Option(
-                "--estimators", help="comma-separated estimator names (default: all the bag allows)"
+                "--estimator",
+                help="estimator to run (repeatable; default: all the bag allows)",
+                autocompletion=estimator_names,
             ),
         ] = None,
         data: Annotated[
@@ -376,7 +364,7 @@ def register(app: typer.Typer) -> None:
             list[str] | None,
             typer.Option(
                 "--set",
-                help="estimator option ESTIMATOR.key=value, e.g. aghili.anchor_source=first-observation (repeatable)",
+                help="estimator option ESTIMATOR.key=value, e.g. aghili.anchor_source=first-observation; key=value when one estimator runs (repeatable)",
             ),
         ] = None,
         plots: Annotated[
@@ -402,7 +390,7 @@ def register(app: typer.Typer) -> None:
             lidar_topic,
             imu_topic,
             gt_topic,
-            estimators,
+            estimator,
             [f"kiss.max_num_threads={threads}", *(data or [])],
             plots,
             settings_overrides=set_ or [],

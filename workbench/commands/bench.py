@@ -1,6 +1,7 @@
-"""``workbench bench [SUITE] --runs N --out DIR [--scheduler ADDRESS] [--workers K]``.
+"""``workbench bench [SUITE|FILE.yaml] --runs N --out DIR [--scheduler ADDRESS] [--workers K]``
+and ``workbench suite NAME`` (a built-in suite's YAML, to copy and edit).
 
-Runs a suite (``workbench.suites``) as a Monte Carlo sweep (``workbench.sweep``), then
+Runs a suite (``workbench.suite_files``) as a Monte Carlo sweep (``workbench.sweep``), then
 writes ``DIR/table.md``, ``table.tex``, ``table.csv`` (``workbench.tables``) and the
 figures in ``DIR/plots/`` (``workbench.report_plots``), and prints the Markdown table and
 the plots folder. Re-running the same command resumes: finished runs are not redone.
@@ -17,9 +18,12 @@ from typing import Annotated
 import typer
 
 from datasets.errors import InputError
+from workbench.completion import estimator_names, suite_names
+from workbench.estimator_settings import settings_by_estimator
 from workbench.plot_formats import parse_plot_formats
 from workbench.reporting import Report
-from workbench.suites import DEFAULT_SUITE, SUITES, get_suite, restrict
+from workbench.suite_files import DEFAULT_SUITE, builtin_suites, get_suite, suite_path
+from workbench.suites import restrict, with_settings
 
 
 def bench(
@@ -35,10 +39,13 @@ def bench(
     datasets: list[str] | None = None,
     estimators: list[str] | None = None,
     plot_formats: tuple[str, ...] = ("png",),
+    settings: list[str] | None = None,
 ) -> BenchOutcome:
     """Run the suite and write tables and plots (in each of ``plot_formats``).
     ``report_only``: run nothing, report the runs on disk (no dataset is probed).
-    ``datasets`` / ``estimators``: only these of the suite (names or labels)."""
+    ``datasets`` / ``estimators``: only these of the suite (names or labels).
+    ``settings``: ``--set`` options, ``ESTIMATOR.key=value`` (``key=value`` when the suite
+    runs one estimator)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -56,6 +63,8 @@ def bench(
     from workbench.sweep.plan import plan_sweep
 
     suite = restrict(get_suite(suite_name), datasets, estimators)
+    names = list(dict.fromkeys(spec.name for spec in suite.estimators))
+    suite = with_settings(suite, settings_by_estimator(settings or [], names))
     runs = suite.default_runs if runs is None else runs
     out = Path(out).resolve()
     formats = plot_formats if plots else ()
@@ -151,7 +160,13 @@ class BenchOutcome:
 def register(app: typer.Typer) -> None:
     @app.command("bench")
     def bench_command(
-        suite: Annotated[str, typer.Argument(help=f"suite: {', '.join(SUITES)}")] = DEFAULT_SUITE,
+        suite: Annotated[
+            str,
+            typer.Argument(
+                help=f"a built-in suite ({', '.join(builtin_suites())}) or a suite .yaml file (`workbench suite NAME` prints one to copy)",
+                autocompletion=suite_names,
+            ),
+        ] = DEFAULT_SUITE,
         runs: Annotated[
             int | None,
             typer.Option(
@@ -190,7 +205,18 @@ def register(app: typer.Typer) -> None:
         ] = None,
         estimator: Annotated[
             list[str] | None,
-            typer.Option("--estimator", help="only this estimator of the suite (repeatable)"),
+            typer.Option(
+                "--estimator",
+                help="only this estimator of the suite (repeatable)",
+                autocompletion=estimator_names,
+            ),
+        ] = None,
+        set_: Annotated[
+            list[str] | None,
+            typer.Option(
+                "--set",
+                help="estimator option ESTIMATOR.key=value (key=value when the suite runs one estimator; repeatable); the label says what was set",
+            ),
         ] = None,
     ) -> None:
         """Run a benchmark suite: every estimator on every dataset it can run on, N seeds,
@@ -200,7 +226,7 @@ def register(app: typer.Typer) -> None:
         outcome = bench(
             suite,
             runs,
-            out or Path("runs") / suite,
+            out or Path("runs") / Path(suite).stem,
             scheduler,
             workers,
             plots,
@@ -209,11 +235,26 @@ def register(app: typer.Typer) -> None:
             datasets=dataset,
             estimators=estimator,
             plot_formats=parse_plot_formats(plot_format),
+            settings=set_,
         )
         show_report(outcome.report, f"suite {suite}")
         if outcome.failed:
             typer.echo(f"error: {outcome.failed} run(s) failed (listed under the table)", err=True)
             raise typer.Exit(3)  # the tables are written; 1 is kept for bugs, 2 for bad input
+
+    @app.command("suite")
+    def suite_command(
+        name: Annotated[
+            str,
+            typer.Argument(
+                help=f"a built-in suite: {', '.join(builtin_suites())}", autocompletion=suite_names
+            ),
+        ],
+    ) -> None:
+        """Print a suite's YAML file: copy it, edit it, run it with `workbench bench FILE.yaml`."""
+        path = suite_path(name)
+        get_suite(name)  # a broken file is reported here, not when it is run
+        typer.echo(path.read_text(encoding="utf-8"), nl=False)
 
 
 def show_report(report: Report, title: str) -> None:

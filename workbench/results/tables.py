@@ -270,7 +270,8 @@ def terminal_tables(rows: list[PairSummary], title: str = "") -> list:
     for dataset in datasets:
         blocks = _shown_blocks([row for row in rows if row.dataset == dataset])
         heading = f"{title}: {dataset}" if title else dataset
-        table = Table(title=heading, title_justify="left", show_lines=False)
+        # labels are Text, never markup: "ekf-slam [acceleration_density=0.2]" is a label
+        table = Table(title=Text(heading), title_justify="left", show_lines=False)
         table.add_column("estimator", no_wrap=True)
         table.add_column("runs", justify="right", no_wrap=True)
         table.add_column("ATE [m]", justify="right", no_wrap=True)
@@ -280,12 +281,12 @@ def terminal_tables(rows: list[PairSummary], title: str = "") -> list:
         table.add_column("ms/step", justify="right", no_wrap=True)
         for row in (r for r in rows if r.dataset == dataset):
             if row.status in ("n/a", "failed", "missing"):
-                table.add_row(row.estimator, _runs_text(row), row.status)
+                table.add_row(Text(row.estimator), _runs_text(row), row.status)
                 continue
             ate = row.stats.get("ate_rmse_m") or row.stats.get("ate_rmse_smoothed_m")
             smoothed = "ˢ" if "ate_rmse_m" not in row.stats and ate is not None else ""
             cells: list = [
-                row.estimator,
+                Text(row.estimator),
                 _runs_text(row),
                 (format_number(ate.mean, 3) + smoothed) if ate else "",
             ]
