@@ -84,9 +84,23 @@ def _say(axes: plt.Axes, text: str) -> None:
     axes.set_yticks([])
 
 
+def time_label(t0: float) -> str:
+    """The relative time axis' label: ``t [s]`` when the data starts at 0."""
+    return "t [s]" if t0 == 0.0 else f"t - {t0:.6g} [s]"
+
+
+def seed_text(seed: int | None) -> str:
+    return "first seed" if seed is None else f"seed {seed}"
+
+
 def dof_text(averaged: AveragedSeries) -> str:
     low, high = int(averaged.dof.min()), int(averaged.dof.max())
     return f"{low} dof" if low == high else f"{low}-{high} dof"
+
+
+COMPONENT_LINESTYLES = ("-", "--", ":")
+"""Components of one quantity (x, y, z) in an estimator's row: told apart by line style, so
+that the row keeps the estimator's colour (``workbench.style``)."""
 
 
 def errors_on_axes(
@@ -95,17 +109,35 @@ def errors_on_axes(
     t0: float,
     components: tuple[int, ...],
     names: tuple[str, ...],
+    colour: str,
     scale: float = 1.0,
 ) -> None:
-    """Error components with their +/-3 sigma envelopes (``scale``: e.g. rad -> deg); the
-    components of one quantity are told apart by the C0.. cycle within the axes only."""
+    """Error components with their +/-3 sigma envelopes (``scale``: e.g. rad -> deg), all in
+    the estimator's ``colour``; component k in line style k, its envelope a thin line of the
+    same style."""
     for index, (component, name) in enumerate(zip(components, names, strict=True)):
-        colour = f"C{index}"
+        linestyle = COMPONENT_LINESTYLES[index % len(COMPONENT_LINESTYLES)]
         sigma = 3.0 * scale * series.sigmas[:, component]
         t = series.t - t0
+        axes.plot(
+            t,
+            scale * series.errors[:, component],
+            color=colour,
+            linestyle=linestyle,
+            linewidth=0.9,
+            label=name,
+        )
         if np.all(np.isfinite(sigma)):
-            axes.fill_between(t, -sigma, sigma, color=colour, alpha=0.15, linewidth=0)
-        axes.plot(t, scale * series.errors[:, component], color=colour, linewidth=0.8, label=name)
+            for sign in (1.0, -1.0):
+                axes.plot(
+                    t,
+                    sign * sigma,
+                    color=colour,
+                    linestyle=linestyle,
+                    linewidth=0.5,
+                    alpha=0.5,
+                    label="_envelope",
+                )
     axes.grid(True, alpha=0.3)
     axes.legend(fontsize=7, loc="upper right", ncol=len(components))
 
@@ -218,6 +250,18 @@ def _t0(pairs: list[PairSummary], seed: int | None) -> float:
     return min(starts) if starts else 0.0
 
 
+def _no_errors_reason(run: RunRecord | None) -> str:
+    """Why a run has no causal pose errors to draw (said in its panel)."""
+    if run is None:
+        return "no finished run"
+    metrics = run.metrics or {}
+    if metrics.get("reference_source") is None:
+        return "no ground truth in this dataset"
+    if metrics.get("ate_rmse_m") is None and metrics.get("ate_rmse_smoothed_m") is not None:
+        return "no causal estimate (a batch solution exists only at the end)"
+    return "its causal pose has no covariance (a derived estimate)"
+
+
 def error_figure(pairs: list[PairSummary], title: str, seed: int | None) -> NamedFigure | None:
     """Pose errors of one seed, a row per estimator (attitude, position)."""
     if not pairs:
@@ -230,23 +274,24 @@ def error_figure(pairs: list[PairSummary], title: str, seed: int | None) -> Name
         run = chosen_run(pair, seed)
         series = None if run is None else run.errors.get("pose")
         if series is None:
-            reason = "no finished run" if run is None else "no pose covariance or no true pose"
-            _say(axes[row, 0], f"{pair.estimator}: {reason}")
+            _say(axes[row, 0], f"{pair.estimator}: {_no_errors_reason(run)}")
             _say(axes[row, 1], "")
             continue
+        colour = estimator_style(pair.estimator).color
+        degrees = np.rad2deg(1.0)
         if series.errors.shape[1] == 6:  # 3-D: [rotation (body), translation (body)]
-            errors_on_axes(axes[row, 0], series, t0, (0, 1, 2), ("x", "y", "z"), np.rad2deg(1.0))
-            errors_on_axes(axes[row, 1], series, t0, (3, 4, 5), ("x", "y", "z"))
+            errors_on_axes(axes[row, 0], series, t0, (0, 1, 2), ("x", "y", "z"), colour, degrees)
+            errors_on_axes(axes[row, 1], series, t0, (3, 4, 5), ("x", "y", "z"), colour)
             axes[row, 0].set_ylabel(f"{pair.estimator}\nrotation [deg]", fontsize=8)
         else:  # 2-D: [body x, body y, heading]
-            errors_on_axes(axes[row, 0], series, t0, (2,), ("heading",), np.rad2deg(1.0))
-            errors_on_axes(axes[row, 1], series, t0, (0, 1), ("x", "y"))
+            errors_on_axes(axes[row, 0], series, t0, (2,), ("heading",), colour, degrees)
+            errors_on_axes(axes[row, 1], series, t0, (0, 1), ("x", "y"), colour)
             axes[row, 0].set_ylabel(f"{pair.estimator}\nheading [deg]", fontsize=8)
-        axes[row, 1].set_ylabel("position (body) [m]", fontsize=8)
-    axes[-1, 0].set_xlabel(f"t - {t0:.6g} [s]")
-    axes[-1, 1].set_xlabel(f"t - {t0:.6g} [s]")
+        axes[row, 1].set_ylabel(f"{pair.estimator}\nposition (body) [m]", fontsize=8)
+    axes[-1, 0].set_xlabel(time_label(t0))
+    axes[-1, 1].set_xlabel(time_label(t0))
     figure.suptitle(
-        f"{title}: pose errors (truth - estimate) with +/-3 sigma, seed {seed if seed is not None else 'first'}",
+        f"{title}: pose errors (truth - estimate) with +/-3 sigma, {seed_text(seed)}",
         fontsize=10,
     )
     return "pose_errors", figure
@@ -266,7 +311,7 @@ def consistency_figure(pairs: list[PairSummary], title: str) -> NamedFigure | No
         ]
         consistency_on_axes(ax, curves, t0)
         ax.set_title(f"{title}: {BLOCK_TITLES[block]}, averaged over runs, 95% band", fontsize=9)
-        ax.set_xlabel(f"t - {t0:.6g} [s]")
+        ax.set_xlabel(time_label(t0))
     return "consistency", figure
 
 
@@ -283,7 +328,7 @@ def nis_figure(pairs: list[PairSummary], title: str, seed: int | None) -> NamedF
         t, nis, dof = _npz(run.folder, "diag_scan_nis_t", "diag_scan_nis", "diag_scan_nis_dof")
         nis_on_axes(ax, pair.estimator, t - t0, nis, dof)
         ax.set_title(f"{title}: {pair.estimator}, seed {run.seed}", fontsize=9)
-    axes[-1, 0].set_xlabel(f"t - {t0:.6g} [s]")
+    axes[-1, 0].set_xlabel(time_label(t0))
     return "nis", figure
 
 
@@ -310,12 +355,12 @@ def landmark_count_figure(
             linewidth=1.0,
             **estimator_style(label).keywords(),
         )
-    axes.set_xlabel(f"t - {t0:.6g} [s]")
+    axes.set_xlabel(time_label(t0))
     axes.set_ylabel("landmarks in state")
     axes.grid(True, alpha=0.3)
     _legend_outside(axes)
     axes.set_title(
-        f"{title}: landmarks in the state (seed {seed if seed is not None else 'first'})",
+        f"{title}: landmarks in the state ({seed_text(seed)})",
         fontsize=9,
     )
     return "landmark_count", figure
