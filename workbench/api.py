@@ -7,6 +7,7 @@
                        out="runs/isam2")
     table = compare(["runs/ekf", "runs/isam2"])      # pandas DataFrame, table.csv's columns
     runs = load_runs(["runs"])                        # one row per run, metrics.json's keys
+    estimate = load_estimate("runs/ekf")              # the datasets.Estimate a folder holds
 
 Options are Python values (``{"gate_probability": 0.99, "acceleration_density": [0.02,
 0.005]}``), validated exactly as ``--set`` / ``--data`` are.
@@ -105,3 +106,11 @@ def load_runs(paths: list[str | Path]):
     from workbench.results.runs import runs_frame
 
     return runs_frame(read_records([Path(p) for p in paths]))
+
+
+def load_estimate(folder: str | Path) -> Estimate:
+    """The ``datasets.Estimate`` a run folder holds (its ``estimate.npz`` and
+    ``events.json``; ``workbench.results.estimate_file`` says what is kept)."""
+    from workbench.results.estimate_file import read_estimate
+
+    return read_estimate(folder)

@@ -30,11 +30,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from datasets.estimate import Estimate
-from datasets.state import StateHistory
 from datasets.trajectory_io import save_npz_atomic, write_atomic, write_kitti, write_tum
 from workbench.evo_results import write_evo_results
 from workbench.results.consistency import CONSISTENCY_FILE, save_run_consistency
+from workbench.results.estimate_file import ESTIMATE_FILE, EVENTS_FILE, estimate_arrays
 from workbench.runner import RunResult
 
 METRICS_FILE = "metrics.json"
@@ -73,60 +72,6 @@ def package_versions() -> dict[str, str | None]:
         except metadata.PackageNotFoundError:
             versions[name] = None
     return versions
-
-
-def _history_arrays(prefix: str, history: StateHistory | None) -> dict[str, np.ndarray]:
-    arrays: dict[str, np.ndarray] = {}
-    if history is None:
-        return arrays
-    if history.pose is not None:
-        arrays[f"{prefix}pose_t"] = history.pose.t
-        arrays[f"{prefix}pose_positions"] = history.pose.positions
-        arrays[f"{prefix}pose_rotations"] = history.pose.rotations
-        if history.pose.covariances is not None:
-            arrays[f"{prefix}pose_covariances"] = history.pose.covariances
-    for name, block in history.blocks.items():
-        arrays[f"{prefix}{name}_t"] = block.t
-        arrays[f"{prefix}{name}_values"] = block.values
-        if block.covariances is not None:
-            arrays[f"{prefix}{name}_covariances"] = block.covariances
-    return arrays
-
-
-def estimate_arrays(estimate: Estimate) -> dict[str, np.ndarray]:
-    """Everything numeric of an ``Estimate`` as flat named arrays for the npz."""
-    arrays = _history_arrays("", estimate.causal)
-    arrays.update(_history_arrays("smoothed_", estimate.smoothed))
-    if estimate.landmarks is not None:
-        arrays["landmarks_ids"] = estimate.landmarks.ids
-        arrays["landmarks_positions"] = estimate.landmarks.positions
-        if estimate.landmarks.covariances is not None:
-            arrays["landmarks_covariances"] = estimate.landmarks.covariances
-    diagnostics = estimate.diagnostics
-    for field_name in (
-        "nis_t",
-        "nis",
-        "nis_dof",
-        "scan_nis_t",
-        "scan_nis",
-        "scan_nis_dof",
-        "assoc_t",
-        "assoc_measurement_index",
-        "assoc_landmark_id",
-        "assoc_decision",
-        "assoc_reason",
-        "assoc_inflation",
-        "landmark_count_t",
-        "landmark_count",
-    ):
-        arrays[f"diag_{field_name}"] = getattr(diagnostics, field_name)
-    for name, values in diagnostics.extras.items():
-        arrays[f"extra_{name}"] = values
-    if estimate.timing is not None:
-        arrays["timing_t"] = estimate.timing.t
-        arrays["timing_seconds"] = estimate.timing.seconds
-        arrays["timing_finalize_seconds"] = np.array(estimate.timing.finalize_seconds)
-    return arrays
 
 
 def _json_default(value: Any) -> Any:
@@ -214,7 +159,7 @@ def write_run_folder(
         if reference is not None and len(reference):
             write_tum(folder / "reference.tum", reference)
             write_kitti(folder / "reference.kitti", reference)
-        save_npz_atomic(folder / "estimate.npz", estimate_arrays(estimate))
+        save_npz_atomic(folder / ESTIMATE_FILE, estimate_arrays(estimate))
         events = {
             "notes": list(estimate.notes),
             "events": [
@@ -222,7 +167,7 @@ def write_run_folder(
                 for event in estimate.diagnostics.events
             ],
         }
-        write_atomic(folder / "events.json", dump_json(events))
+        write_atomic(folder / EVENTS_FILE, dump_json(events))
         save_run_consistency(estimate, result.sequence, folder / CONSISTENCY_FILE)
         metrics = compute_metrics(estimate, result.sequence)
         metrics["warnings"] = run_warnings(result)
