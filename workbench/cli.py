@@ -344,7 +344,9 @@ def main(argv: list[str] | None = None) -> int:
     _register_command_modules()
     command = typer.main.get_command(app)
     try:
-        command.main(args=argv, prog_name="workbench", standalone_mode=False)
+        # without standalone mode click *returns* the code of a typer.Exit (bench's 3 when a
+        # run failed) instead of exiting with it
+        status = command.main(args=argv, prog_name="workbench", standalone_mode=False)
     except InputError as error:
         # one line whatever the message holds (a library's multi-line text folded)
         print(f"error: {' '.join(str(error).split())}", file=sys.stderr)
@@ -365,7 +367,7 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 1
-    return 0
+    return status if isinstance(status, int) else 0
 
 
 if __name__ == "__main__":

@@ -237,7 +237,7 @@ def register(app: typer.Typer) -> None:
             plot_formats=parse_plot_formats(plot_format),
             settings=set_,
         )
-        show_report(outcome.report, f"suite {suite}")
+        show_report(outcome.report, f"suite {Path(suite).stem}")
         if outcome.failed:
             typer.echo(f"error: {outcome.failed} run(s) failed (listed under the table)", err=True)
             raise typer.Exit(3)  # the tables are written; 1 is kept for bugs, 2 for bad input
