@@ -43,6 +43,11 @@ def _content(folder: Path) -> tuple[frozenset[str], int, bytes]:
     return names, seed, (folder / "estimate.tum").read_bytes()
 
 
+def _partial(root: Path) -> list[Path]:
+    """What a write in progress (or killed) leaves beside the run folder."""
+    return [p for p in root.iterdir() if p.name.startswith(".run.partial-")]
+
+
 def test_a_killed_rewrite_leaves_the_old_run_or_the_new_one(tmp_path: Path) -> None:
     reference_new = tmp_path / "new"
     assert _run(reference_new, 5).wait() == 0
@@ -56,15 +61,20 @@ def test_a_killed_rewrite_leaves_the_old_run_or_the_new_one(tmp_path: Path) -> N
     rng = np.random.default_rng(0)
     outcomes = []
     interrupted = 0  # kills that landed while the new folder was being written
-    for delay in rng.uniform(0.3 * duration, 1.1 * duration, 20):
+    for index in range(20):
         process = _run(folder, 5 if len(outcomes) % 2 == 0 else 1)
-        time.sleep(delay)
+        if index % 2 == 0:  # at a random moment of the whole run
+            time.sleep(rng.uniform(0.3 * duration, 1.1 * duration))
+        else:  # once the new folder is being written: the moment that matters
+            while process.poll() is None and not _partial(tmp_path):
+                time.sleep(0.001)
+            time.sleep(rng.uniform(0.0, 0.02))
         process.send_signal(signal.SIGKILL)
         process.wait()
         found = _content(folder)
         assert found in (old, new), found[:2]
         outcomes.append(found[1])
-        interrupted += any(p.name.startswith(".run.partial-") for p in tmp_path.iterdir())
+        interrupted += bool(_partial(tmp_path))
         # the next write starts from whatever is there: make it the old run again
         if found != old:
             assert _run(folder, 1).wait() == 0
