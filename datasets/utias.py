@@ -364,13 +364,16 @@ def load_mrclam(
     swaps: list[tuple[int, int]] = []
     if config.fix_swapped_labels:
         # on the whole recording, so that a short run gets the same map as the full one
-        every_scan, _, _ = _build_scans(sightings, meas_t, odo_t, subject_of, config)
+        every_scan, _, _ = _build_scans(
+            sightings, meas_t, (float(odo_t[0]), float(odo_t[-1])), subject_of, config
+        )
         full_heading, _ = repair_heading_glitches(
             truth_values[:, 2], truth_t, config.max_heading_rate_rad_s
         )
         swaps = detect_label_swaps(
             every_scan, truth_t, truth_values[:, :2], full_heading, subject_of, surveyed
         )
+    recording_span = (float(odo_t[0]), float(odo_t[-1]))
     if config.duration_s is not None:
         keep = odo_t <= config.duration_s
         odo_t, odo_values = odo_t[keep], odo_values[keep]
@@ -381,8 +384,18 @@ def load_mrclam(
             f"{odometry.path}: fewer than two odometry or ground-truth rows in the selected time span"
         )
 
-    scans, scan_ids, meas_counts = _build_scans(sightings, meas_t, odo_t, subject_of, config)
+    scans, scan_ids, meas_counts = _build_scans(
+        sightings, meas_t, recording_span, subject_of, config, end_s=float(odo_t[-1])
+    )
     counts.update(meas_counts)
+    misplaced = meas_counts["out_of_range_times"] + meas_counts["time_going_back"]
+    if misplaced > config.max_dropped_fraction * len(sightings.values):
+        raise InputError(
+            f"{sightings.path}: {misplaced} of {len(sightings.values)} sightings lie outside the "
+            f"odometry's time span ({recording_span[0] + origin:.3f}-{recording_span[1] + origin:.3f} s)"
+            " or go back in time, more than max_dropped_fraction="
+            f"{config.max_dropped_fraction} (raise it to accept)"
+        )
     gaps = np.diff(odo_t)
     long_gaps = [
         (float(odo_t[i]), float(gaps[i])) for i in np.flatnonzero(gaps > config.odometry_gap_s)
@@ -568,11 +581,15 @@ def _increasing(t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarr
 def _build_scans(
     sightings: _Table,
     meas_t: np.ndarray,
-    odo_t: np.ndarray,
+    span: tuple[float, float],
     subject_of: dict[int, int],
     config: UtiasOptions,
+    end_s: float | None = None,
 ) -> tuple[list[LandmarkScan], tuple[tuple[float, np.ndarray], ...], dict[str, int]]:
-    """Group sightings into scans (one per time), dropping what is not a landmark sighting."""
+    """Group sightings into scans (one per time), dropping what is not a landmark sighting.
+    ``span``: the recording's odometry time span (a sighting outside it is dropped and
+    counted); ``end_s``: the selected end (``duration_s``: later sightings are not selected,
+    which is not a drop)."""
     counts = dict.fromkeys(
         (
             "robot_barcodes",
@@ -591,8 +608,10 @@ def _build_scans(
     latest = -np.inf
     for row, t in zip(sightings.values, meas_t):
         barcode, rng, bearing = int(row[1]), float(row[2]), float(row[3])
-        if t < odo_t[0] - 1e-9 or t > odo_t[-1] + 1e-9:
+        if t < span[0] - 1e-9 or t > span[1] + 1e-9:
             counts["out_of_range_times"] += 1
+            continue
+        if end_s is not None and t > end_s + 1e-9:
             continue
         if t < latest - 1e-9:
             counts["time_going_back"] += 1

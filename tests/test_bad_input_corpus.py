@@ -405,6 +405,11 @@ CASES: list[tuple[str, Builder, str]] = [
     ),
     ("utias odometry backwards", _utias(_reverse_odometry), "do not increase in time"),
     (
+        "utias sighting in the future",
+        _utias(_append("Robot1_Measurement.dat", "1000000.00 72 2.0 0.1")),
+        "1 of 41 sightings lie outside the odometry's time span",
+    ),
+    (
         "utias barcode twice",
         _utias(_append("Barcodes.dat", "8 72")),
         "Barcodes.dat:6: barcode 72 listed twice",
@@ -521,7 +526,11 @@ CASES: list[tuple[str, Builder, str]] = [
     ("mcap garbage", _mcap_garbage, "x.mcap: cannot open bag"),
     ("bag truncated", _synthetic_bag_then(_truncate), "corridor"),
     ("bag missing lidar topic", _synthetic_bag_then(lambda b: ["--lidar-topic", "/nope"]), "/nope"),
-    ("bag missing truth topic", _synthetic_bag_then(lambda b: ["--gt-topic", "/truth"]), "/truth"),
+    (
+        "bag missing truth topic",
+        _synthetic_bag_then(lambda b: ["--truth-topic", "/truth"]),
+        "/truth",
+    ),
     ("bag unknown estimator", _synthetic_bag_then(lambda b: ["--estimator", "nope"]), "nope"),
     (
         "bag bad kiss option",
@@ -641,3 +650,57 @@ def test_the_corpus_covers_every_source() -> None:
     groups = {name.split()[0] for name, _, _ in CASES}
     assert len(CASES) >= 80
     assert {"tum", "kitti", "utias", "vp", "bag", "ros2", "mcap", "run", "metrics"} <= groups
+
+
+# ------------------------------------------------------------- destinations that refuse
+# sysfs refuses every new entry, even to root (these tests run as root, for whom permission
+# bits do not apply): the real kernel error, not a mock
+UNWRITABLE = Path("/sys/workbench-cannot-write-here")
+needs_sysfs = pytest.mark.skipif(
+    not Path("/sys/kernel").is_dir(), reason="needs Linux sysfs for an unwritable folder"
+)
+
+
+@needs_sysfs
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "dead-reckoning", "sim:circle", "--data", "duration_s=1", "--no-plots"],
+        ["simulate", "circle", "--data", "duration_s=1"],
+        ["bench", "tiny", "--runs", "1", "--no-plots"],
+        ["simulate", "lidar-corridor", "--data", "duration_s=0.2"],
+    ],
+    ids=["run", "simulate", "bench", "simulate-bag"],
+)
+def test_an_unwritable_destination_is_one_clear_error(argv: list[str], capsys) -> None:
+    status = main([*argv, "--out", str(UNWRITABLE / "out")])
+    captured = capsys.readouterr()
+    errors = [line for line in captured.err.splitlines() if line.startswith("error: ")]
+    assert status == 2, captured.err
+    assert len(errors) == 1 and str(UNWRITABLE) in errors[0], captured.err
+    assert "Traceback" not in captured.err and "internal error" not in captured.err
+
+
+def test_a_full_disk_mid_write_keeps_the_earlier_run(
+    earlier_run, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """The disk fills while the new run folder is written: one error line naming the file,
+    exit 2, the earlier run untouched, nothing left beside it."""
+    import errno
+
+    import workbench.run_folder
+
+    folder, before = earlier_run
+
+    def no_space(path, arrays) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(workbench.run_folder, "save_npz_atomic", no_space)
+    argv = ["run", "dead-reckoning", "sim:circle", "--data", "duration_s=1", "--no-plots"]
+    status = main([*argv, "--out", str(folder)])
+    captured = capsys.readouterr()
+    assert status == 2, captured.err
+    assert captured.err.strip().startswith("error: ") and captured.err.count("\n") == 1
+    assert "estimate.npz: No space left on device" in captured.err
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    assert not [p for p in folder.parent.iterdir() if p.name.startswith(".run.")]

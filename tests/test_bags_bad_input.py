@@ -3,6 +3,7 @@ the CLI prints one line and exits 2; results already written stay valid."""
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 from pathlib import Path
@@ -186,8 +187,15 @@ def test_empty_and_nan_clouds_and_backward_stamps_are_counted(tmp_path):
     ]
     messages.sort(key=lambda item: item[2])
     path = write_ros2(tmp_path / "odd", messages)
+    # half the clouds skipped: by default an error naming the topic and the first skip
+    with pytest.raises(
+        InputError,
+        match=r"2 of the 4 messages on /cloud skipped \(first: /cloud at t=1\.100000000: empty cloud.*max_skipped_fraction=0\.05",
+    ):
+        list(read_stream(path, ["/cloud", "/imu"], ReadSettings(), ReadReport()))
     report = ReadReport()
-    items = list(read_stream(path, ["/cloud", "/imu"], ReadSettings(), report))
+    accept = ReadSettings(max_skipped_fraction=1.0)
+    items = list(read_stream(path, ["/cloud", "/imu"], accept, report))
     stamps = [m.t for _, m in items]
     assert stamps == sorted(stamps)
     clouds = [m for _, m in items if isinstance(m, PointCloud)]
@@ -201,9 +209,12 @@ def test_empty_and_nan_clouds_and_backward_stamps_are_counted(tmp_path):
         for line in report.lines()
     )
     # the whole pipeline (KISS-ICP on the two usable clouds) runs and still reports the skips
-    sequence = load_bag(str(path), 0, {"kiss.max_num_threads": "1"})
+    options = {"kiss.max_num_threads": "1", "max_skipped_fraction": "1"}
+    sequence = load_bag(str(path), 0, options)
     kinds = [type(m).__name__ for m in sequence.measurements()]
     assert kinds.count("PointCloud") == 2 and kinds.count("Odometry") == 1
+    warned = sequence.metadata["warnings"]
+    assert any("skipped 2 x /cloud at t=1.100000000: empty cloud" in line for line in warned)
 
 
 def test_cli_error_is_one_line_and_earlier_results_stay_valid(tmp_path, synthetic, capsys):
@@ -266,3 +277,78 @@ def test_a_damaged_mcap_reading_fewer_clouds_than_its_index_is_loud(tmp_path) ->
     accepted = load_bag(str(bag), 0, {"kiss.max_num_threads": "1", "max_missing_fraction": "0.5"})
     for _ in accepted.measurements():
         pass
+
+
+def _odometry(t: float, x: float):
+    vector = T["geometry_msgs/msg/Vector3"]
+    return T["nav_msgs/msg/Odometry"](
+        header=_header(t),
+        child_frame_id="base",
+        pose=T["geometry_msgs/msg/PoseWithCovariance"](
+            pose=T["geometry_msgs/msg/Pose"](
+                position=T["geometry_msgs/msg/Point"](x=x, y=0.0, z=0.0),
+                orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+            ),
+            covariance=np.zeros(36),
+        ),
+        twist=T["geometry_msgs/msg/TwistWithCovariance"](
+            twist=T["geometry_msgs/msg/Twist"](
+                linear=vector(x=0.0, y=0.0, z=0.0), angular=vector(x=0.0, y=0.0, z=0.0)
+            ),
+            covariance=np.zeros(36),
+        ),
+    )
+
+
+def _room_bag(path: Path, truth_x: float, imu_value: float = 0.0) -> Path:
+    """Eight clouds of a still room, 100 Hz IMU, an Odometry topic /odom at 10 Hz."""
+    rng = np.random.default_rng(4)
+    messages = []
+    for k in range(8):
+        t = 1.0 + 0.1 * k
+        messages.append(("/cloud", "sensor_msgs/msg/PointCloud2", t, _cloud(t, _box_points(rng))))
+        messages.append(("/odom", "nav_msgs/msg/Odometry", t, _odometry(t, truth_x)))
+    messages += [
+        ("/imu", "sensor_msgs/msg/Imu", 1.0 + 0.01 * k, _imu(1.0 + 0.01 * k, imu_value))
+        for k in range(80)
+    ]
+    messages.sort(key=lambda item: item[2])
+    return write_ros2(path, messages)
+
+
+def test_a_pose_topic_is_truth_only_when_named(tmp_path: Path, capsys) -> None:
+    bag = _room_bag(tmp_path / "room", 0.0)
+    sequence = load_bag(str(bag), 0, {"kiss.max_num_threads": "1"})
+    assert sequence.ground_truth is None and sequence.metadata["reference_source"] is None
+    assert any("/odom not taken as truth unless named" in w for w in sequence.metadata["warnings"])
+    named = load_bag(str(bag), 0, {"kiss.max_num_threads": "1", "ground_truth_topic": "/odom"})
+    assert len(named.ground_truth.pose) == 8 and named.metadata["reference_source"] == "topic /odom"
+    out = tmp_path / "out"
+    argv = ["bag", str(bag), "--out", str(out), "--estimator", "dead-reckoning", "--no-plots"]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert "warning: bag:" in captured.err and "/odom not taken as truth" in captured.err
+    (row,) = csv.DictReader((out / "table.csv").open())
+    assert row["estimator"] == "dead-reckoning" and row["ate_rmse_m"] == ""
+
+
+def test_non_finite_truth_or_imu_is_an_error_not_a_quiet_run(tmp_path: Path, capsys) -> None:
+    nan_truth = _room_bag(tmp_path / "nan_truth", np.nan)
+    with pytest.raises(InputError, match=r"8 of the 8 messages on /odom skipped .*non-finite pose"):
+        load_bag(str(nan_truth), 0, {"ground_truth_topic": "/odom"})
+    nan_imu = _room_bag(tmp_path / "nan_imu", 0.0, imu_value=np.nan)
+    out = tmp_path / "out"
+    assert main(["bag", str(nan_imu), "--out", str(out), "--no-plots"]) == 2
+    error = capsys.readouterr().err
+    assert "80 of the 80 messages on /imu skipped" in error and "non-finite IMU sample" in error
+
+
+def test_bag_exits_non_zero_when_no_estimator_ran(tmp_path: Path, capsys) -> None:
+    bag = _room_bag(tmp_path / "room", 0.0)
+    out = tmp_path / "out"
+    # aghili needs surveyed anchors, which a bag does not have
+    argv = ["bag", str(bag), "--out", str(out), "--estimator", "aghili", "--no-plots"]
+    assert main(argv) == 3
+    captured = capsys.readouterr()
+    assert "error: no estimator ran on this bag" in captured.err
+    assert "anchors=3 known landmarks requested" in (out / "table.md").read_text()

@@ -42,14 +42,17 @@ def bags(tmp_path_factory) -> dict[str, Path]:
 def test_stream_is_stamp_ordered_and_complete(bags, kind):
     path = bags[kind]
     with open_bag(path) as reader:
-        topics = discover_topics(path, topic_types(reader))
+        topics = discover_topics(path, topic_types(reader), ground_truth="/ground_truth")
         origin = first_gps_origin(reader, path, topics.gps)
+        unnamed = discover_topics(path, topic_types(reader))
     assert (topics.lidar, topics.imu, topics.ground_truth, topics.gps) == (
         "/points",
         "/imu",
         "/ground_truth",
         "/gps",
     )
+    # a pose topic is truth only when named
+    assert unnamed.ground_truth is None and unnamed.unnamed_truth == ("/ground_truth",)
     report = ReadReport()
     items = list(
         read_stream(
@@ -235,7 +238,10 @@ def test_topic_discovery_lists_candidates():
         "/odom": "nav_msgs/msg/Odometry",
         "/ground_truth": "geometry_msgs/msg/PoseStamped",
     }
-    assert discover_topics(Path("x.bag"), truth, lidar="/a/points").ground_truth == "/ground_truth"
+    found = discover_topics(Path("x.bag"), truth, lidar="/a/points")
+    assert found.ground_truth is None and found.unnamed_truth == ("/ground_truth", "/odom")
+    named = discover_topics(Path("x.bag"), truth, lidar="/a/points", ground_truth="/odom")
+    assert named.ground_truth == "/odom" and named.unnamed_truth == ()
 
 
 def test_lidar_to_body_extrinsic(bags):

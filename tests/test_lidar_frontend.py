@@ -30,7 +30,7 @@ def runs(tmp_path_factory) -> dict[str, Path]:
             root / f"out_{name}",
             None,
             None,
-            None,
+            "/ground_truth",
             ["dead-reckoning"],
             ["kiss.max_num_threads=1"],
             plots=False,

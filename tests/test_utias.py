@@ -148,6 +148,8 @@ def test_ids_can_be_withheld_and_options_checked() -> None:
     assert scans and all(scan.ids is None for scan in scans)
     assert len(sequence.ground_truth.scan_ids) == len(scans)
     assert sequence.ground_truth.pose.t[-1] <= 60.0
+    # sightings after duration_s are not selected, which is not a drop (no warning)
+    assert sequence.metadata["counts"]["out_of_range_times"] == 0
     with pytest.raises(InputError, match="known keys"):
         load(f"{UTIAS}#robot1", 0, {"idz": "false"})
     with pytest.raises(InputError, match="robotN"):
@@ -210,9 +212,10 @@ def test_unknown_robot_duplicate_and_out_of_range_sightings_are_dropped_and_coun
         "5.00 72 1.9 0.12",  # after the last odometry row
     ]
     folder = write_folder(tmp_path / "d", grid_odometry(50), sightings)
-    sequence = load_mrclam(
-        folder, 1, UtiasOptions(ids=True, landmark_conversion="first-order", odometry_noise="white")
-    )
+    options = dict(ids=True, landmark_conversion="first-order", odometry_noise="white")
+    with pytest.raises(InputError, match="1 of 8 sightings lie outside the odometry's time span"):
+        load_mrclam(folder, 1, UtiasOptions(**options))
+    sequence = load_mrclam(folder, 1, UtiasOptions(**options, max_dropped_fraction=0.2))
     counts = sequence.metadata["counts"]
     assert counts["duplicate_sightings"] == 1
     assert counts["unknown_barcodes"] == 1

@@ -201,6 +201,8 @@ def simulate_command(
         from datasets.synthetic_lidar import write_lidar_bag
 
         path = write_lidar_bag(out, seed, format, options)
+        typer.echo(f"wrote {path} (score against its truth with --truth-topic /ground_truth)")
+        return
     else:
         from datasets.simulation.folder_format import write_sequence_folder
         from datasets.simulation.scenarios import load_scenario
@@ -359,6 +361,12 @@ def main(argv: list[str] | None = None) -> int:
     except TyperException as error:  # usage errors: unknown command, missing option, bad value
         print(f"error: {error.format_message()}", file=sys.stderr)
         return int(getattr(error, "exit_code", 2) or 2)
+    except OSError as error:  # the machine, not the workbench: a full disk, a read-only folder
+        if os.environ.get("WORKBENCH_DEBUG"):
+            traceback.print_exc()
+        where = f"{error.filename}: " if error.filename else ""
+        print(f"error: {where}{error.strerror or error}", file=sys.stderr)
+        return 2
     except Exception as error:  # noqa: BLE001 - the CLI never shows a bare traceback
         if os.environ.get("WORKBENCH_DEBUG"):
             traceback.print_exc()

@@ -105,7 +105,10 @@ def replaced_as_a_whole(folder: Path) -> Iterator[Path]:
         raise InputError(f"--out {folder}: exists and is not a folder")
     staging = _sibling(folder, _PARTIAL)
     shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
+    try:
+        staging.mkdir()
+    except OSError as error:
+        raise InputError(f"--out {folder}: cannot write there ({error.strerror})") from None
     try:
         yield staging
     except BaseException:

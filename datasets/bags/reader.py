@@ -78,12 +78,14 @@ class ReadReport:
 
 @dataclass(frozen=True)
 class BagTopics:
-    """The topics a bag source reads (None: absent)."""
+    """The topics a bag source reads (None: absent), and the pose topics it does not take as
+    truth because none was named (``unnamed_truth``: listed in the run's warnings)."""
 
     lidar: str
     imu: str | None = None
     ground_truth: str | None = None
     gps: str | None = None
+    unnamed_truth: tuple[str, ...] = ()
 
 
 def _default_typestore(path: Path):
@@ -157,14 +159,6 @@ def _choose(
                 f"{path}: no {' or '.join(wanted)} topic for the {role}; topics: {_listing(types)}"
             )
         return None
-    if len(candidates) > 1 and role == "ground truth":
-        named = [
-            topic
-            for topic in candidates
-            if any(key in topic.lower() for key in ("truth", "gt", "groundtruth"))
-        ]
-        if len(named) == 1:
-            return named[0]
     if len(candidates) > 1:
         listed = ", ".join(f"{topic} [{types[topic]}]" for topic in candidates)
         raise InputError(f"{path}: several {role} topics: {listed}; choose one with {option}=TOPIC")
@@ -179,11 +173,13 @@ def discover_topics(
     ground_truth: str | None = None,
     gps: str | None = None,
 ) -> BagTopics:
-    """Topics by type when not given; ``InputError`` with the candidates when ambiguous."""
-    return BagTopics(
-        lidar=_choose(path, types, (POINTCLOUD2,), lidar, "lidar", "lidar_topic", True),
-        imu=_choose(path, types, (IMU,), imu, "IMU", "imu_topic", False),
-        ground_truth=_choose(
+    """Sensor topics by type when not given (``InputError`` with the candidates when
+    ambiguous). Ground truth only when named: an Odometry or PoseStamped topic may be wheel
+    odometry or another estimator's output (``/odometry/filtered``), and scoring against it
+    would print numbers that look like accuracy and are not."""
+    truth = None
+    if ground_truth:
+        truth = _choose(
             path,
             types,
             GROUND_TRUTH_TYPES,
@@ -191,8 +187,16 @@ def discover_topics(
             "ground truth",
             "ground_truth_topic",
             False,
-        ),
+        )
+    unnamed = tuple(
+        sorted(topic for topic, msgtype in types.items() if msgtype in GROUND_TRUTH_TYPES)
+    )
+    return BagTopics(
+        lidar=_choose(path, types, (POINTCLOUD2,), lidar, "lidar", "lidar_topic", True),
+        imu=_choose(path, types, (IMU,), imu, "IMU", "imu_topic", False),
+        ground_truth=truth,
         gps=_choose(path, types, (NAVSATFIX,), gps, "GPS", "gps_topic", False),
+        unnamed_truth=() if truth else unnamed,
     )
 
 
@@ -257,6 +261,7 @@ class ReadSettings:
     gps_sigma_m: float = 1.0
     reorder_window_s: float = 1.0
     max_missing_fraction: float = 0.01
+    max_skipped_fraction: float = 0.05
 
 
 def convert(
@@ -322,6 +327,7 @@ def read_ground_truth(
     times, positions, quats = [], [], []
     with open_bag(path) as reader:
         for _, msgtype, stamp, message in iter_messages(reader, path, [topic]):
+            report.messages[topic] += 1
             position, quat = pose_of(message, msgtype)
             norm = np.linalg.norm(quat)
             if not (np.all(np.isfinite(position)) and np.isfinite(norm) and norm > 1e-9):
@@ -372,6 +378,22 @@ def read_stream(
             emitted, _, out_topic, out = heapq.heappop(heap)
             yield out_topic, out
         _check_counts(path, reader, topics, settings, report)
+    check_skips(path, topics, settings.max_skipped_fraction, report)
+
+
+def check_skips(path: Path, topics: list[str], max_fraction: float, report: ReadReport) -> None:
+    """``InputError`` when more than ``max_fraction`` of a topic's messages were skipped
+    (NaN IMU samples, non-finite poses, empty clouds, ...): a few skips are counted
+    warnings, most of a topic is a broken recording, not a quirk."""
+    for topic in topics:
+        skipped = sum(count for (name, _), count in report.skipped.items() if name == topic)
+        read = int(report.messages[topic])
+        if skipped and skipped > max_fraction * read:
+            first = next(report.examples[key] for key in sorted(report.skipped) if key[0] == topic)
+            raise InputError(
+                f"{path}: {skipped} of the {read} messages on {topic} skipped (first: {first}); "
+                f"more than max_skipped_fraction={max_fraction} (raise it to accept)"
+            )
 
 
 def _check_counts(path: Path, reader, topics: list[str], settings: ReadSettings, report) -> None:

@@ -2,9 +2,10 @@
 
 Sensors: POINT_CLOUD (the clouds), IMU when the bag has an Imu topic, GPS when it has a
 NavSatFix topic (local ENU about the first fix, ``datasets.bags.gps``), ODOMETRY (KISS-ICP
-relative poses) and LANDMARKS (corners) from the front end. Ground truth: the poses of an
-Odometry/PoseStamped topic, and the true corners when a sidecar ``NAME.corners.json``
-(written by ``workbench simulate lidar-corridor``) lies next to the bag.
+relative poses) and LANDMARKS (corners) from the front end. Ground truth: the poses of the
+Odometry/PoseStamped topic named by ``ground_truth_topic`` (never one found by type: it may
+be wheel odometry), and the true corners when a sidecar ``NAME.corners.json`` (written by
+``workbench simulate lidar-corridor``) lies next to the bag.
 
 Frames: the body frame is the IMU's; clouds are moved into it with the ``lidar_to_body``
 option (identity by default: lidar = body). KISS-ICP then tracks the body frame and corners
@@ -13,7 +14,6 @@ are body-frame positions, as the estimators expect.
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +22,7 @@ from pydantic import ConfigDict, Field
 from datasets.bags.reader import (
     ReadReport,
     ReadSettings,
+    check_skips,
     discover_topics,
     first_gps_origin,
     iter_messages,
@@ -52,8 +53,6 @@ from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import Frame, GroundTruth, LandmarkMap, StateHistory
 from datasets.trajectory import Trajectory
 
-log = logging.getLogger(__name__)
-
 
 class BagOptions(LidarSourceOptions):
     """``--data`` options of ``bag:PATH`` (nested ones as ``kiss.voxel_size_m=0.5``, ``corner.directions=true``)."""
@@ -70,7 +69,16 @@ class BagOptions(LidarSourceOptions):
     )
     imu_topic: str | None = Field(None, description="Imu topic (default: the only one, if any)")
     ground_truth_topic: str | None = Field(
-        None, description="Odometry/PoseStamped ground-truth topic (default: the only one)"
+        None,
+        description="Odometry/PoseStamped topic to score against (default: none; a pose topic "
+        "is never taken as truth unless named: it may be wheel odometry or another estimator)",
+    )
+    max_skipped_fraction: float = Field(
+        0.05,
+        ge=0,
+        le=1,
+        description="messages skipped on a topic (NaN IMU samples, non-finite poses, empty "
+        "clouds, stamps going back) are counted warnings; more than this fraction is an error",
     )
     gps_topic: str | None = Field(
         None, description="NavSatFix topic (default: the only one, if any)"
@@ -206,6 +214,7 @@ def load_bag(argument: str | None, seed: int, options: dict[str, str]) -> Sequen
 def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSource]:
     """The sequence of bag ``argument`` and its ``LidarSource`` (front end and skip report)."""
     path = Path(argument)
+    gps_note = None
     with open_bag(path) as reader:
         types = topic_types(reader)
         topics = discover_topics(
@@ -220,7 +229,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         gps_topic = topics.gps if settings.gps else None
         origin = first_gps_origin(reader, path, gps_topic) if gps_topic else None
         if gps_topic and origin is None:
-            log.warning("%s: %s has no valid fix; GPS not used", path, gps_topic)
+            gps_note = f"{gps_topic} has no valid fix; GPS not used"
             gps_topic = None
         start_s = reader.start_time * 1e-9
         rates = {
@@ -238,6 +247,12 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         if topics.ground_truth
         else (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
     )
+    if topics.ground_truth:
+        check_skips(path, [topics.ground_truth], settings.max_skipped_fraction, load_report)
+        if len(gt[0]) < 2:
+            raise InputError(
+                f"{path}: ground-truth topic {topics.ground_truth} has {len(gt[0])} usable poses"
+            )
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
     ground_truth = _ground_truth(*gt, truth)
@@ -248,6 +263,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         reorder_window_s=settings.reorder_window_s,
         lidar_to_body=extrinsic_matrix(settings.lidar_to_body),
         max_missing_fraction=settings.max_missing_fraction,
+        max_skipped_fraction=settings.max_skipped_fraction,
     )
     front_end = LidarFrontEnd(
         FrontEndSettings(
@@ -262,6 +278,14 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
 
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
+    # datasets.Sequence metadata "warnings": printed by the workbench (prefixed with the
+    # dataset's name) and written to every run's metrics.json
+    warnings = list(load_report.lines()) + ([gps_note] if gps_note else [])
+    if topics.unnamed_truth:
+        warnings.append(
+            f"no ground truth: pose topic(s) {', '.join(topics.unnamed_truth)} not taken "
+            "as truth unless named (--data ground_truth_topic=TOPIC, workbench bag --truth-topic)"
+        )
 
     def stream():
         report = ReadReport()
@@ -273,8 +297,8 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             settings.max_frames,
         )
         resolved.update(front_end.resolved())
-        for line in report.lines():
-            log.warning("%s: %s", path, line)
+        # the stream's skips join the warnings (once, however often the stream is read)
+        warnings.extend(line for line in report.lines() if line not in warnings)
 
     sensors = {Sensor.POINT_CLOUD} if settings.point_clouds else set()
     sensors |= {Sensor.IMU} if imu_topic else set()
@@ -309,6 +333,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         metadata={
             "source": str(path),
             "reference_source": f"topic {topics.ground_truth}" if topics.ground_truth else None,
+            "warnings": warnings,  # datasets.Sequence metadata: printed and in metrics.json
             "topics": {
                 "lidar": topics.lidar,
                 "imu": imu_topic,
@@ -319,7 +344,6 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             "kiss_icp": resolved,
             "corner_sidecar": str(sidecar) if truth is not None else None,
             "options": settings.model_dump(mode="json"),
-            "ground_truth_skips": load_report.lines(),
         },
     ), source
 

@@ -273,13 +273,14 @@ def bag_command(
             err=True,
         )
     write_atomic(front_dir / "metrics.json", dump_json(front))
-    for line in source.report.lines():
-        typer.echo(f"warning: {path}: {line}", err=True)
+    # the loader's and the front end's: skipped messages, pose topics not taken as truth
+    for line in sequence.metadata.get("warnings") or ():
+        typer.echo(f"warning: {sequence.name}: {line}", err=True)
 
     sequence = with_corner_ids(sequence, source)
     rows = [{"estimator": "kiss-icp (front end)", "status": "ok"}]
     front_note = f"front end kiss-icp: {front['kiss_icp_ms_median']:.3g} ms per frame (median)" + (
-        f", ATE {front['kiss_icp_ate_rmse_m']:.4g} m against the truth topic"
+        f", ATE {front['kiss_icp_ate_rmse_m']:.4g} m against {sequence.metadata['reference_source']}"
         if front["kiss_icp_ate_rmse_m"] is not None
         else ""
     )
@@ -341,9 +342,12 @@ def register(app: typer.Typer) -> None:
         imu_topic: Annotated[
             str | None, typer.Option("--imu-topic", help="Imu topic (default: found by type)")
         ] = None,
-        gt_topic: Annotated[
+        truth_topic: Annotated[
             str | None,
-            typer.Option("--gt-topic", help="Odometry/PoseStamped ground-truth topic"),
+            typer.Option(
+                "--truth-topic",
+                help="Odometry/PoseStamped topic to score against (default: none; a pose topic is never taken as truth unless named)",
+            ),
         ] = None,
         estimator: Annotated[
             list[str] | None,
@@ -389,7 +393,7 @@ def register(app: typer.Typer) -> None:
             out,
             lidar_topic,
             imu_topic,
-            gt_topic,
+            truth_topic,
             estimator,
             [f"kiss.max_num_threads={threads}", *(data or [])],
             plots,
@@ -397,4 +401,11 @@ def register(app: typer.Typer) -> None:
             plot_formats=parse_plot_formats(plot_format),
         )
         typer.echo((out / "table.md").read_text(), nl=False)
-        typer.echo(f"frontend: {out / 'frontend'}; {len(rows) - 1} estimator run(s) in {out}")
+        ran = [row["estimator"] for row in rows[1:] if row["status"] == "ok"]
+        typer.echo(
+            f"frontend: {out / 'frontend'}; {len(ran)} of {len(rows) - 1} estimator run(s) "
+            f"finished in {out}"
+        )
+        if not ran:
+            typer.echo("error: no estimator ran on this bag (the table says why)", err=True)
+            raise typer.Exit(3)

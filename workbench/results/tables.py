@@ -128,7 +128,7 @@ def table_notes(rows: list[PairSummary], notes: list[str] = ()) -> list[str]:
                 f"{row.dataset} / {row.estimator}: no causal estimate (a batch solution exists "
                 "only at the end): causal columns blank, every cell scores the smoothed one"
             )
-    return found
+    return list(dict.fromkeys(found))  # a dataset's warning once, not once per estimator
 
 
 def _row_cells(
