@@ -68,3 +68,19 @@ def rot2_batch(angles_rad: np.ndarray) -> np.ndarray:
     """Planar rotation matrices, shape (N, 2, 2), of angles [rad], shape (N,)."""
     c, s = np.cos(angles_rad), np.sin(angles_rad)
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def pose3_inverse_adjoint(rotation_vector: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """Adjoint map (6, 6) of the inverse of the Pose3 increment ``U = (Exp(rotation_vector),
+    translation)`` in GTSAM's [rotation, translation] tangent order: for ``T' = T U`` with
+    right perturbations ``T_true = T Exp(xi)``, ``xi' = Ad(U^-1) xi + eta``.
+    ``Ad(U^-1) = [[R^T, 0], [[-R^T t]x R^T, R^T]]`` (checked against GTSAM's
+    ``Pose3.inverse().AdjointMap()`` in the tests)."""
+    rotation_inverse = so3_exp(np.asarray(rotation_vector, dtype=float)).T
+    adjoint = np.zeros((6, 6))
+    adjoint[0:3, 0:3] = rotation_inverse
+    adjoint[3:6, 3:6] = rotation_inverse
+    adjoint[3:6, 0:3] = (
+        skew(-rotation_inverse @ np.asarray(translation, dtype=float)) @ rotation_inverse
+    )
+    return adjoint

@@ -1,12 +1,15 @@
 """Dead reckoning: integrate the motion sensors, never correct. The lower bound of every table.
 
-Three inputs, whichever the sequence provides (first match wins):
+Whichever motion input the sequence provides (IMU, odometry, gyro: first match wins):
 - 3-D IMU: strap-down integration over each interval with the average of its two end
   samples (exact rotation increment, mid-interval rotation for the specific force) from ``sequence.initial_state`` with zero biases;
   the covariance of the 15-dim error state [dtheta (body, right perturbation), dv (world),
   dp (world), db_g, db_a] propagated with the first-order model and the sequence's stated
   IMU noise densities, so NEES of dead reckoning is meaningful too.
 - 2-D odometry: compose relative poses, or integrate (v_forward, omega) as a unicycle.
+- 3-D odometry (lidar odometry: KISS-ICP relative poses): compose Pose3 increments
+  ``T' = T U``, covariance ``P' = Ad(U^-1) P Ad(U^-1)^T + Sigma_U`` in GTSAM's
+  [rotation, translation] right-perturbation order.
 - 2-D gyro only: heading from the gyro, the initial body-frame velocity held constant. The
   covariance is that of the model the gyro-driven filters assume (a body-velocity random
   walk, per body axis, and the gyro bias, both kept in a 6-state error [pose (right
@@ -27,6 +30,7 @@ from datasets.estimator_options import per_body_axis
 from datasets.measurements import GyroSample, ImuSample, Measurement, Odometry, Sensor
 from datasets.rotations import (
     matrix_from_quat_wxyz,
+    pose3_inverse_adjoint,
     quat_wxyz_from_matrix,
     rot2,
     skew,
@@ -91,7 +95,12 @@ class DeadReckoning:
             if start.velocity is None
             else np.array(start.velocity, dtype=float)
         )
-        if self.dimension == 3:
+        if self.dimension == 3 and self.input is Sensor.ODOMETRY:
+            self.rotation = matrix_from_quat_wxyz(start.rotation)
+            self.covariance = np.diag(
+                [start.rotation_sigma_rad**2] * 3 + [start.position_sigma_m**2] * 3
+            )
+        elif self.dimension == 3:
             self.rotation = matrix_from_quat_wxyz(start.rotation)
             self.velocity = velocity
             self.covariance = np.zeros((15, 15))
@@ -118,7 +127,11 @@ class DeadReckoning:
 
     # ------------------------------------------------------------------ recording
     def _record(self) -> None:
-        if self.dimension == 3:
+        if self.dimension == 3 and self.input is Sensor.ODOMETRY:
+            self.recorder.pose(
+                self.t, self.position, quat_wxyz_from_matrix(self.rotation), self.covariance
+            )
+        elif self.dimension == 3:
             to_body = np.eye(6)
             to_body[3:6, 3:6] = self.rotation.T
             indices = np.r_[0:3, 6:9]
@@ -199,9 +212,12 @@ class DeadReckoning:
         self._record()
 
     def _odometry(self, odometry: Odometry) -> None:
-        if self.dimension != 2:
-            raise InputError(f"3-D odometry dead reckoning is not supported (t={odometry.t:.6f} s)")
         dt = self._advance_time(odometry.t)
+        if self.dimension == 3:
+            self._compose_spatial(odometry)
+            self.t = odometry.t
+            self._record()
+            return
         if odometry.relative_pose is not None:
             increment = np.asarray(odometry.relative_pose, float)
             increment_cov = np.asarray(odometry.covariance, float)
@@ -253,6 +269,23 @@ class DeadReckoning:
         kalman.propagate_vehicle(self.covariance, 3, adjoint_inverse, increment_cov)
         self.position = self.position + rot2(self.heading) @ np.array([dx, dy])
         self.heading = float(wrap_angle(self.heading + dtheta))
+
+    def _compose_spatial(self, odometry: Odometry) -> None:
+        """Pose3 composition with a relative pose (rotation vector, translation) in the
+        previous body frame; right-perturbation covariance (GTSAM's Pose3 order)."""
+        if odometry.relative_pose is None:
+            raise InputError(
+                f"3-D odometry at t={odometry.t:.6f} s is a velocity; dead reckoning composes "
+                "relative poses"
+            )
+        increment = np.asarray(odometry.relative_pose, float)
+        increment_cov = np.asarray(odometry.covariance, float)
+        if not (np.all(np.isfinite(increment)) and np.all(np.isfinite(increment_cov))):
+            raise InputError(f"non-finite odometry at t={odometry.t:.6f} s")
+        adjoint_inverse = pose3_inverse_adjoint(increment[:3], increment[3:])
+        kalman.propagate_vehicle(self.covariance, 6, adjoint_inverse, increment_cov)
+        self.position = self.position + self.rotation @ increment[3:]
+        self.rotation = self.rotation @ so3_exp(increment[:3])
 
     def estimate(self) -> Estimate:
         return self.recorder.build()

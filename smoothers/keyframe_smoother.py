@@ -103,8 +103,6 @@ class KeyframeSmoother:
                 f"{sequence.name}: the smoother needs an initial state (sequence.initial_state) to fix the frame; "
                 "the dataset gives none, so the system would be indeterminate"
             )
-        if self.dimension == 3 and Sensor.IMU not in sequence.sensors:
-            raise InputError(f"{sequence.name}: the 3-D smoother needs IMU samples")
         self.start = sequence.initial_state
         self.priors = initial_priors(config, sequence)
         self.motion = motion_model(config, sequence)
@@ -118,9 +116,14 @@ class KeyframeSmoother:
         self.estimate_values = gtsam.Values()  # the newest keyframe's solved states
         self.causal_covariances = True
         self.has_gps = Sensor.GPS in sequence.sensors and config.use_gps
+        # lidar odometry beside the IMU: extra relative-pose factors (without an IMU it is
+        # the motion model itself)
         self.odometry_3d = (
             RelativePoseAccumulator()
-            if self.dimension == 3 and config.use_odometry and Sensor.ODOMETRY in sequence.sensors
+            if self.dimension == 3
+            and config.use_odometry
+            and Sensor.ODOMETRY in sequence.sensors
+            and Sensor.IMU in sequence.sensors
             else None
         )
         self.pending = PendingUpdate()

@@ -2,7 +2,8 @@
 motion model between keyframes.
 
 - 3-D: IMU preintegration (``smoothers.imu_graph.ImuMotion``), gravity from the config, the
-  sequence's metadata, or 9.81 m/s^2.
+  sequence's metadata, or 9.81 m/s^2; without an IMU, the relative poses of lidar odometry
+  (``smoothers.spatial_odometry.SpatialOdometryMotion``).
 - 2-D: odometry between-factors when the sequence has odometry, else the documented
   gyro-only constant-velocity model (``smoothers.planar_graph.PlanarMotion``).
 
@@ -21,6 +22,7 @@ from smoothers.config import SmootherConfig
 from smoothers.imu_graph import ImuMotion, ImuNoise
 from smoothers.initialization import InitialPriors
 from smoothers.planar_graph import PlanarMotion
+from smoothers.spatial_odometry import SpatialOdometryMotion
 
 DEFAULT_GYRO_BIAS_SIGMA_RAD_S = 0.01
 DEFAULT_ACCEL_BIAS_SIGMA_M_S2 = 0.1
@@ -45,9 +47,15 @@ def initial_priors(config: SmootherConfig, sequence: Sequence) -> InitialPriors:
     )
 
 
-def motion_model(config: SmootherConfig, sequence: Sequence) -> ImuMotion | PlanarMotion:
+def motion_model(
+    config: SmootherConfig, sequence: Sequence
+) -> ImuMotion | PlanarMotion | SpatialOdometryMotion:
     """The motion model the sequence's dimension and sensors call for (module docstring)."""
     c = config
+    if sequence.dimension == 3 and Sensor.IMU not in sequence.sensors:
+        if Sensor.ODOMETRY not in sequence.sensors:
+            raise InputError(f"{sequence.name}: the 3-D smoother needs IMU samples or odometry")
+        return SpatialOdometryMotion()
     if sequence.dimension == 3:
         gravity = c.gravity_m_s2 or float(sequence.metadata.get("gravity_m_s2", 9.81))
         return ImuMotion(

@@ -45,7 +45,13 @@ from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
 from datasets.estimator_options import per_body_axis
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Odometry, Sensor
 from datasets.odometry_noise import OdometryNoiseModel
-from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, so3_exp, wrap_angle
+from datasets.rotations import (
+    matrix_from_quat_wxyz,
+    quat_wxyz_from_matrix,
+    skew,
+    so3_exp,
+    wrap_angle,
+)
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
 from datasets.stream_clock import StreamClock
@@ -60,6 +66,7 @@ from filters.ekf_slam.motion import (
     VehicleMean,
     predict_gyro_cv,
     predict_odometry_2d,
+    predict_odometry_3d,
 )
 from filters.ekf_slam.observation import initialise_landmark, predict_observations
 
@@ -148,8 +155,6 @@ class EkfSlam:
         for sensor in wanted:
             if sensor not in available:
                 continue
-            if sensor is Sensor.ODOMETRY and sequence.dimension != 2:
-                continue  # 3-D odometry input is not modelled; fall through to the gyro
             return sensor
         raise InputError(
             f"{sequence.name}: ekf-slam motion_input={config.motion_input} needs one of "
@@ -179,21 +184,24 @@ class EkfSlam:
             self.recorder.event(measurement.t, "motion_gap", gap_s=dt, input=self.input.value)
         if isinstance(measurement, Odometry):
             increment, increment_cov = _odometry_increment(
-                measurement, dt, self.sequence_noise.odometry
+                measurement, dt, self.dimension, self.sequence_noise.odometry
             )
-            new, transition, process = predict_odometry_2d(
+            predict = predict_odometry_2d if self.dimension == 2 else predict_odometry_3d
+            new, transition, process = predict(
                 self.vehicle,
                 self.layout,
                 increment,
                 increment_cov * self.config.odometry_noise_scale,
             )
             if self.fej:
-                # Huang et al. (2008), eq. (25): the heading column at the previous
-                # prediction p_{k|k-1} instead of the updated p_{k|k}
+                # Huang et al. (2008), eq. (25): the rotation column at the previous
+                # prediction p_{k|k-1} instead of the updated p_{k|k} (3-D: the same with the
+                # world-frame rotation error, -[p' - p]x)
+                step = new.position - self.predicted_position
                 transition = transition.copy()
                 transition[self.layout.position, self.layout.rotation] = (
-                    PLANAR_J @ (new.position - self.predicted_position)
-                )[:, None]
+                    (PLANAR_J @ step)[:, None] if self.dimension == 2 else -skew(step)
+                )
                 self.predicted_position = new.position.copy()
         else:
             if isinstance(measurement, ImuSample):
@@ -486,19 +494,25 @@ def _first(*values: float | None) -> float:
 
 
 def _odometry_increment(
-    odometry: Odometry, dt: float, model: OdometryNoiseModel | None = None
+    odometry: Odometry, dt: float, dimension: int, model: OdometryNoiseModel | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Planar increment (dx, dy, dtheta) and its covariance from relative-pose or (v, omega)
-    odometry. A velocity sample's (v, omega) covariance has no lateral axis: when the
-    sequence states its odometry noise model, the increment's covariance is the model's
-    (with the lateral term), else the sample's covariance mapped through ``dt``."""
+    """The increment and its covariance from relative-pose or (v, omega) odometry: planar
+    (dx, dy, dtheta), or spatial (rotation vector, translation) in 3-D. A planar velocity
+    sample's (v, omega) covariance has no lateral axis: when the sequence states its
+    odometry noise model, the increment's covariance is the model's (with the lateral
+    term), else the sample's covariance mapped through ``dt``."""
     covariance = np.asarray(odometry.covariance, float)
+    size = 3 if dimension == 2 else 6
     if odometry.relative_pose is not None:
         increment = np.asarray(odometry.relative_pose, float)
-        if increment.shape != (3,):
+        if increment.shape != (size,) or covariance.shape != (size, size):
             raise InputError(
-                f"odometry at t={odometry.t:.6f} s: ekf-slam takes planar increments (3,), got {increment.shape}"
+                f"odometry at t={odometry.t:.6f} s: {dimension}-D ekf-slam takes increments ({size},) with a ({size}, {size}) covariance, got {increment.shape} and {covariance.shape}"
             )
+    elif dimension == 3:
+        raise InputError(
+            f"odometry at t={odometry.t:.6f} s is a velocity; 3-D ekf-slam composes relative poses"
+        )
     elif odometry.velocity is not None:
         speed, rate = np.asarray(odometry.velocity, float)
         step = max(dt, 0.0)

@@ -1,8 +1,9 @@
 """Vehicle motion models of the world-centric EKF-SLAM: mean propagation, error-state
 transition ``F`` and process noise ``Q`` on the vehicle block (layout: ``layout.VehicleLayout``).
 
-Two models:
+Three models:
 
+- ``predict_odometry_3d``: a spatial relative pose (lidar odometry), the 3-D analogue below.
 - ``predict_odometry_2d``: a planar relative pose ``u = (dx, dy, dtheta)`` in the previous
   body frame (odometry increments, or ``(v dt, 0, omega dt)`` from velocity odometry):
   ``p' = p + R(theta) u_xy``, ``theta' = theta + u_theta`` (the standard EKF-SLAM
@@ -79,6 +80,34 @@ def predict_odometry_2d(
         mean.velocity,
         mean.gyro_bias,
     )
+    return new, transition, process
+
+
+def predict_odometry_3d(
+    mean: VehicleMean, layout: VehicleLayout, increment: np.ndarray, increment_cov: np.ndarray
+) -> tuple[VehicleMean, np.ndarray, np.ndarray]:
+    """Compose the spatial increment ``u = (w, t)`` (6,) (rotation vector, translation in the
+    previous body frame; lidar odometry) with covariance (6, 6) in [rotation (right
+    perturbation of the increment), translation] order: ``p' = p + R t``, ``R' = R Exp(w)``.
+
+    With the filter's world-frame (left) rotation error ``R_true = Exp(dphi) R``:
+    ``dp' = dp - [R t]x dphi + R dt_u`` and ``dphi' = dphi + R' dw_u``.
+
+    Returns:
+        (new mean, F (n_v, n_v), Q (n_v, n_v)).
+    """
+    rotation = np.asarray(mean.rotation, float)
+    rotation_vector = np.asarray(increment[:3], float)
+    translation = np.asarray(increment[3:], float)
+    new_rotation = rotation @ so3_exp(rotation_vector)
+    world_step = rotation @ translation
+    transition = np.eye(layout.size)
+    transition[layout.position, layout.rotation] = -skew(world_step)
+    input_jacobian = np.zeros((layout.size, 6))
+    input_jacobian[layout.rotation, 0:3] = new_rotation
+    input_jacobian[layout.position, 3:6] = rotation
+    process = input_jacobian @ np.asarray(increment_cov, float) @ input_jacobian.T
+    new = VehicleMean(mean.position + world_step, new_rotation, mean.velocity, mean.gyro_bias)
     return new, transition, process
 
 

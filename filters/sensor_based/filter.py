@@ -49,6 +49,7 @@ second term is indefinite and lacks the rho^2 factor.)
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import ClassVar
 
 import numpy as np
@@ -103,6 +104,11 @@ def paper_laser_covariances(points: np.ndarray) -> np.ndarray:
     return first_order_covariance(ranges, bearings, range_sigma, PAPER_BEARING_SIGMA_RAD)
 
 
+ODOMETRY_RATE_BIAS_SIGMA_RAD_S = 1e-4
+"""Prior std of the gyro-bias state when the rate comes from odometry (it has no bias; the
+state stays so that the model is the paper's) [rad/s]."""
+
+
 class SensorBasedSlam:
     """Guerreiro et al. (2013) GAS sensor-based SLAM filter, 2-D and 3-D."""
 
@@ -110,6 +116,7 @@ class SensorBasedSlam:
     sensor_options: ClassVar[tuple[frozenset[Sensor], ...]] = (
         frozenset({Sensor.GYRO, Sensor.LANDMARKS}),
         frozenset({Sensor.IMU, Sensor.LANDMARKS}),
+        frozenset({Sensor.ODOMETRY, Sensor.LANDMARKS}),
     )
     dimensions: ClassVar[frozenset[int]] = frozenset({2, 3})
 
@@ -149,8 +156,13 @@ class SensorBasedSlam:
         bias = np.zeros(r)
         if config.initial_gyro_bias_rad_s is not None:
             bias = self._vector(config.initial_gyro_bias_rad_s, r, "initial_gyro_bias_rad_s")
-        bias_sigma = (
-            config.initial_gyro_bias_sigma_rad_s or sequence.noise.gyro_bias_sigma_rad_s or 0.05
+        # no gyro: the rate is the odometry's rotation over each increment (lidar odometry),
+        # which has no bias of its own; the bias state stays, with a tight prior
+        self.rate_from_odometry = not ({Sensor.GYRO, Sensor.IMU} & sequence.sensors)
+        bias_sigma = config.initial_gyro_bias_sigma_rad_s or (
+            ODOMETRY_RATE_BIAS_SIGMA_RAD_S
+            if self.rate_from_odometry
+            else sequence.noise.gyro_bias_sigma_rad_s or 0.05
         )
         self.state = FilterState(
             d, velocity, velocity_sigma**2 * np.eye(d), bias, bias_sigma**2 * np.eye(r)
@@ -208,6 +220,7 @@ class SensorBasedSlam:
         )
         self.odometry_model = sequence.noise.odometry
         self._odometry_t: float | None = None
+        self._rate_odometry_t: float | None = None
         self.source_of: dict[int, int] = {}  # map id -> the scan id it was created from
         self._record_vehicle(self.t if self.t is not None else 0.0)
         self._record_pose(self.t if self.t is not None else 0.0)
@@ -229,10 +242,46 @@ class SensorBasedSlam:
             self._rate_sample(measurement.t, gyro[2:3] if self.dimension == 2 else gyro)
         elif isinstance(measurement, LandmarkScan):
             self._scan(measurement)
-        elif isinstance(measurement, Odometry) and self.use_odometry:
-            self._odometry(measurement)
+        elif isinstance(measurement, Odometry):
+            if self.rate_from_odometry:
+                self._odometry_rate(measurement)
+            if self.use_odometry:
+                self._odometry(measurement)
 
     # ------------------------------------------------------------------ odometry
+    def _odometry_rate(self, odometry: Odometry) -> None:
+        """Without a gyro, the rate input over an odometry increment is its rotation over
+        its duration (``log(dR) / dt``, held over the increment), and the white noise the
+        model injects through ``G`` is the increment's rotation variance over ``dt``
+        (a rate error of covariance ``Sigma_w / dt^2`` held for ``dt`` is a density
+        ``Sigma_w / dt``). An extension beyond the paper, which assumes a rate gyro."""
+        previous, self._rate_odometry_t = self._rate_odometry_t, float(odometry.t)
+        if previous is None:
+            previous = self.t
+        dt = odometry.dt if odometry.dt is not None else odometry.t - (previous or odometry.t)
+        covariance = np.asarray(odometry.covariance, dtype=float)
+        if odometry.relative_pose is not None:
+            if not dt or dt <= 0.0:
+                self._propagate_to(odometry.t)
+                return
+            pose = np.asarray(odometry.relative_pose, dtype=float)
+            rotation = pose[2:3] if self.dimension == 2 else pose[0:3]
+            rotation_cov = covariance[2:3, 2:3] if self.dimension == 2 else covariance[0:3, 0:3]
+            rate = rotation / dt
+            density_sq = float(np.mean(np.diag(rotation_cov))) / dt
+        else:
+            velocity = np.asarray(odometry.velocity, dtype=float)
+            rate = velocity[1:2] if self.dimension == 2 else velocity[3:6]
+            rate_cov = covariance[1:2, 1:2] if self.dimension == 2 else covariance[3:6, 3:6]
+            density_sq = float(np.mean(np.diag(rate_cov))) * max(dt or 0.0, 0.0)
+        if not (np.all(np.isfinite(rate)) and np.isfinite(density_sq)):
+            self.skipped["nan_odometry"] += 1
+            self._propagate_to(odometry.t)
+            return
+        self.noise = replace(self.noise, gyro_noise_density=math.sqrt(max(density_sq, 0.0)))
+        self._propagate_to(odometry.t, rate)
+        self.rate = rate
+
     def _odometry(self, odometry: Odometry) -> None:
         """Odometry as a measurement of the body velocity ``v`` (a selection of the state):
         an extension beyond the paper (config ``use_odometry``). The sample's mean velocity
