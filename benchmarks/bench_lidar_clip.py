@@ -39,7 +39,9 @@ def deviation_from(reference, pose) -> tuple[float, float, float]:
     path = float(np.sum(np.linalg.norm(np.diff(reference.positions, axis=0), axis=1)))
     yaw = []
     for quat, ref_index in zip(pose.rotations, index, strict=True):
-        relative = matrix_from_quat_wxyz(reference.rotations[ref_index]).T @ matrix_from_quat_wxyz(quat)
+        relative = matrix_from_quat_wxyz(reference.rotations[ref_index]).T @ matrix_from_quat_wxyz(
+            quat
+        )
         yaw.append(abs(np.rad2deg(so3_log(relative)[2])))
     return float(position.max()), 100.0 * float(position.max()) / path, float(max(yaw))
 
@@ -59,7 +61,9 @@ def main() -> None:
     rows = []
     for name in LIDAR_ONLY:
         result = execute(RunRequest(name, f"scans:{CLIP}"), sequence=sequence)
-        history = result.estimate.causal if result.estimate.causal.pose else result.estimate.smoothed
+        history = (
+            result.estimate.causal if result.estimate.causal.pose else result.estimate.smoothed
+        )
         pose = history.pose
         if name == "dead-reckoning":
             reference = pose  # the composition of KISS-ICP's increments: its own trajectory
@@ -68,8 +72,12 @@ def main() -> None:
         nis = result.estimate.diagnostics
         nis_per_dof = float(np.sum(nis.scan_nis) / max(np.sum(nis.scan_nis_dof), 1))
         rows.append((name, *deviation_from(reference, pose), nis_per_dof, per_frame_ms))
-    print(f"front end: {args.frames} frames in {front_seconds:.2f} s ({args.frames / front_seconds:.1f} frames/s)")
-    print(f"{'estimator':20s} {'max dev [m]':>11s} {'% path':>7s} {'max yaw [deg]':>13s} {'NIS/dof':>8s} {'ms/frame':>9s}")
+    print(
+        f"front end: {args.frames} frames in {front_seconds:.2f} s ({args.frames / front_seconds:.1f} frames/s)"
+    )
+    print(
+        f"{'estimator':20s} {'max dev [m]':>11s} {'% path':>7s} {'max yaw [deg]':>13s} {'NIS/dof':>8s} {'ms/frame':>9s}"
+    )
     for name, dev, share, yaw, nis_per_dof, ms in rows:
         print(f"{name:20s} {dev:11.3f} {share:7.2f} {yaw:13.3f} {nis_per_dof:8.3f} {ms:9.2f}")
 

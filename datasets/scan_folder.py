@@ -296,6 +296,7 @@ def scans_sequence(
             odometry=settings.odometry,
             corners=settings.corners,
             warmup_frames=settings.warmup_frames,
+            confirm_corners=settings.confirm_corners,
             kiss=settings.kiss,
             corner=settings.corner,
         )
@@ -319,10 +320,12 @@ def scans_sequence(
             yield cloud
 
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
+    reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
 
     def stream():
         yield from with_front_end(clouds(), front_end, settings.point_clouds, settings.max_frames)
         resolved.update(front_end.resolved())
+        reobservation.update(front_end.tracker.stats.summary())
         for line in source.report.lines():
             log.warning("%s", line)
 
@@ -353,6 +356,7 @@ def scans_sequence(
             else None,
             "files": len(files),
             "kiss_icp": resolved,
+            "corner_reobservation": reobservation,  # filled once the stream has run
             "time_order_problems": int(order_problem.size),
             "options": settings.model_dump(mode="json"),
         },

@@ -134,7 +134,7 @@ def test_every_lidar_only_estimator_runs_on_the_real_clip() -> None:
         estimate = execute(RunRequest(estimator, name), sequence=sequence).estimate
         history = estimate.causal if estimate.causal.pose else estimate.smoothed
         poses[estimator] = history.pose
-        assert len(history.pose) >= 11, estimator
+        assert len(history.pose) >= 8, estimator  # sensor-based: a pose per scan
         if estimator != "dead-reckoning":
             assert np.sum(estimate.diagnostics.scan_nis_dof) > 0, estimator
     # dead reckoning composes KISS-ICP's increments: one pose per increment and the start

@@ -270,6 +270,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             odometry=settings.odometry,
             corners=settings.corners,
             warmup_frames=settings.warmup_frames,
+            confirm_corners=settings.confirm_corners,
             kiss=settings.kiss,
             corner=settings.corner,
         )
@@ -278,6 +279,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
 
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
+    reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
     # datasets.Sequence metadata "warnings": printed by the workbench (prefixed with the
     # dataset's name) and written to every run's metrics.json
     warnings = list(load_report.lines()) + ([gps_note] if gps_note else [])
@@ -297,6 +299,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             settings.max_frames,
         )
         resolved.update(front_end.resolved())
+        reobservation.update(front_end.tracker.stats.summary())
         # the stream's skips join the warnings (once, however often the stream is read)
         warnings.extend(line for line in report.lines() if line not in warnings)
 
@@ -342,6 +345,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             },
             "gps_origin": list(origin) if origin else None,
             "kiss_icp": resolved,
+            "corner_reobservation": reobservation,  # filled once the stream has run
             "corner_sidecar": str(sidecar) if truth is not None else None,
             "options": settings.model_dump(mode="json"),
         },

@@ -17,6 +17,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
+from datasets.lidar.corner_tracking import CornerTracker
 from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, extract_corners
 from datasets.lidar.kiss_icp_odometry import (
     KissIcpOdometry,
@@ -44,6 +45,10 @@ class FrontEndSettings(BaseModel):
     corner: CornerConfig = Field(
         default_factory=CornerConfig, description="corner extractor settings"
     )
+    confirm_corners: bool = Field(
+        True,
+        description="emit a corner only once it is found again where it was in the previous frame (KISS-ICP's poses): sliding outlines are never landmarks",
+    )
 
 
 class LidarSourceOptions(BaseModel):
@@ -69,6 +74,10 @@ class LidarSourceOptions(BaseModel):
     corner: CornerConfig = Field(
         default_factory=CornerConfig,
         description="corner extractor settings, as corner.KEY=VALUE (listed below)",
+    )
+    confirm_corners: bool = Field(
+        True,
+        description="emit a corner only once it is found again where it was in the previous frame (KISS-ICP's poses; datasets.lidar.corner_tracking): the outline of a car slides with the viewpoint and is never a landmark",
     )
 
 
@@ -103,6 +112,7 @@ class LidarFrontEnd:
         self.settings = settings
         self.frames: list[FrontEndFrame] = []
         self._odometry = KissIcpOdometry(settings.kiss) if settings.odometry else None
+        self.tracker = CornerTracker()
 
     def frame(self, index: int, cloud: PointCloud) -> FrontEndFrame:
         """The result for the ``index``-th cloud (computed once, then cached)."""
@@ -129,12 +139,14 @@ class LidarFrontEnd:
             and cloud.point_times is not None
             and len(self.frames) < self.settings.warmup_frames
         ):
-            corners = replace(
-                corners,
-                points=corners.points[:0],
-                covariances=corners.covariances[:0],
-                directions=None if corners.directions is None else corners.directions[:0],
+            corners = _select(corners, np.zeros(len(corners.points), dtype=bool))
+        if corners is not None and pose is not None and len(corners.points):
+            d = corners.points.shape[1]
+            confirmed = self.tracker.confirm(
+                pose[:d, :d], pose[:d, 3], corners.points, corners.covariances
             )
+            if self.settings.confirm_corners:
+                corners = _select(corners, confirmed)
         result = FrontEndFrame(
             cloud.t,
             t,
@@ -184,6 +196,15 @@ class LidarFrontEnd:
     def trajectory(self) -> Trajectory | None:
         """KISS-ICP poses of the frames so far (world = first body frame), or None."""
         return None if self._odometry is None else self._odometry.trajectory()
+
+
+def _select(corners: Corners, keep: np.ndarray) -> Corners:
+    return replace(
+        corners,
+        points=corners.points[keep],
+        covariances=corners.covariances[keep],
+        directions=None if corners.directions is None else corners.directions[keep],
+    )
 
 
 def with_front_end(

@@ -55,6 +55,41 @@ def weighted_rigid_alignment(
     return rotation, mean_target - rotation @ mean_source
 
 
+PLANAR_VARIANCE_RATIO = 10.0
+"""3-D landmarks whose median vertical variance exceeds this many times their horizontal
+variance (lidar slab corners: their height is the slab's, not measured) fix only the
+horizontal part of an alignment (``EarthFrameTracker``)."""
+
+
+def _yaw(rotation: np.ndarray) -> float:
+    return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+
+
+def _rot_z(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def horizontal_alignment(
+    source: np.ndarray,
+    target: np.ndarray,
+    weights: np.ndarray,
+    tilt_rotation: np.ndarray,
+    vertical_translation: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A 3-D rigid transform whose heading and horizontal translation come from aligning
+    the landmarks' horizontal positions (``weighted_rigid_alignment`` in the plane), and
+    whose tilt (roll, pitch) and vertical translation come from another estimate
+    (``tilt_rotation``, ``vertical_translation``): for landmarks whose height is not
+    measured, the plane is all they can fix."""
+    planar_rotation, planar_translation = weighted_rigid_alignment(
+        source[:, :2], target[:, :2], weights
+    )
+    heading = float(np.arctan2(planar_rotation[1, 0], planar_rotation[0, 0]))
+    rotation = _rot_z(heading) @ _rot_z(-_yaw(tilt_rotation)) @ tilt_rotation
+    return rotation, np.array([*planar_translation, vertical_translation])
+
+
 def _well_spread(points: np.ndarray, minimum_spread_m: float) -> bool:
     """Enough geometry to fix a rotation: 2-D two distinct points, 3-D three non-collinear."""
     centred = points - points.mean(axis=0)
@@ -108,11 +143,13 @@ class EarthFrameTracker:
                 few landmarks.
         """
         keys = [int(i) for i in ids]
-        weights_now = (
-            1.0 / np.maximum(np.trace(covariances, axis1=1, axis2=2), 1e-12)
-            if len(ids)
-            else np.zeros(0)
+        planar = self._planar(covariances)
+        trace = (
+            np.trace(covariances[:, :2, :2], axis1=1, axis2=2)
+            if planar
+            else np.trace(covariances, axis1=1, axis2=2)
         )
+        weights_now = 1.0 / np.maximum(trace, 1e-12) if len(ids) else np.zeros(0)
         common = [k for k, landmark_id in enumerate(ids) if int(landmark_id) in self._previous]
         increment = None
         if common:
@@ -124,7 +161,11 @@ class EarthFrameTracker:
                     for k in common
                 ]
             )
-            if _well_spread(current, self.minimum_spread_m):
+            if planar and _well_spread(current[:, :2], self.minimum_spread_m):
+                increment = horizontal_alignment(
+                    current, previous, weights, fallback_rotation, fallback_translation[2]
+                )
+            elif not planar and _well_spread(current, self.minimum_spread_m):
                 increment = weighted_rigid_alignment(current, previous, weights)
         if increment is None:
             increment = (fallback_rotation, fallback_translation)
@@ -134,7 +175,7 @@ class EarthFrameTracker:
         rotation, translation = increment
         self.position = self.position + self.rotation @ translation
         self.rotation = self.rotation @ rotation
-        anchored = self._anchor(keys, positions, weights_now)
+        anchored = self._anchor(keys, positions, weights_now, planar)
         if anchored is not None:
             self.rotation, self.position = anchored
             self.anchored_steps += 1
@@ -147,18 +188,32 @@ class EarthFrameTracker:
             if key not in self.earth_map and weight >= known:
                 self.earth_map[key] = (self.to_earth(position[None])[0], weight)
 
+    def _planar(self, covariances: np.ndarray) -> bool:
+        """3-D landmarks whose height is not measured (``PLANAR_VARIANCE_RATIO``)."""
+        if self.dimension != 3 or not len(covariances):
+            return False
+        vertical = np.median(covariances[:, 2, 2])
+        horizontal = np.median(np.trace(covariances[:, :2, :2], axis1=1, axis2=2)) / 2.0
+        return bool(vertical > PLANAR_VARIANCE_RATIO * horizontal)
+
     def _anchor(
-        self, keys: list[int], positions: np.ndarray, weights_now: np.ndarray
+        self, keys: list[int], positions: np.ndarray, weights_now: np.ndarray, planar: bool
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """The body-to-Earth pose aligning the current map with the Earth map, or None when
-        they share too few well-spread landmarks."""
+        they share too few well-spread landmarks (horizontally only for ``planar`` maps,
+        whose tilt and height stay the tracked pose's)."""
         common = [k for k, key in enumerate(keys) if key in self.earth_map]
-        if not common or not _well_spread(positions[common], self.minimum_spread_m):
+        spread_of = (lambda p: p[:, :2]) if planar else (lambda p: p)
+        if not common or not _well_spread(spread_of(positions[common]), self.minimum_spread_m):
             return None
         earth = np.stack([self.earth_map[keys[k]][0] for k in common])
         weights = np.array(
             [1.0 / (1.0 / weights_now[k] + 1.0 / self.earth_map[keys[k]][1]) for k in common]
         )
+        if planar:
+            return horizontal_alignment(
+                positions[common], earth, weights, self.rotation, self.position[2]
+            )
         return weighted_rigid_alignment(positions[common], earth, weights)
 
     def forget(self, landmark_id: int) -> None:

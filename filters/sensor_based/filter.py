@@ -279,8 +279,19 @@ class SensorBasedSlam:
             self._propagate_to(odometry.t)
             return
         self.noise = replace(self.noise, gyro_noise_density=math.sqrt(max(density_sq, 0.0)))
+        rotation_before, translation_before = self._motion_rotation, self._motion_translation
         self._propagate_to(odometry.t, rate)
         self.rate = rate
+        if odometry.relative_pose is not None:
+            # the Earth-frame fallback's motion over this increment is the increment itself
+            # (the velocity state, still converging at the start, would lose the distance)
+            pose = np.asarray(odometry.relative_pose, dtype=float)
+            if self.dimension == 2:
+                step, turn = pose[:2], rot2(float(pose[2]))
+            else:
+                step, turn = pose[3:6], so3_exp(pose[0:3])
+            self._motion_translation = translation_before + rotation_before @ step
+            self._motion_rotation = rotation_before @ turn
 
     def _odometry(self, odometry: Odometry) -> None:
         """Odometry as a measurement of the body velocity ``v`` (a selection of the state):

@@ -135,6 +135,9 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
         "skipped": source.report.lines(),
         "nonfinite_points_dropped": int(source.report.nonfinite_points),
         "topics": sequence.metadata.get("topics"),
+        # corners found again where they were (KISS-ICP's poses), and how far they moved
+        # against their covariances (datasets.lidar.corner_tracking)
+        **front_end.tracker.stats.summary(),
     }
     truth = sequence.ground_truth.pose if sequence.ground_truth is not None else None
     trajectory = front_end.trajectory()
