@@ -40,6 +40,25 @@ class _Track:
     last: np.ndarray
     last_covariance: np.ndarray
     sightings: int
+    first_frame: int
+
+
+@dataclass(frozen=True)
+class Reobservation:
+    """One confirmed corner against the first sighting of its track, horizontally.
+
+    Attributes:
+        residual: now minus first, world frame (2,) [m].
+        covariance: the two corners' covariances summed (2, 2) [m^2].
+        frames: frames between the two sightings.
+        lever: the corner relative to the vehicle now, world frame (2,) [m] (a heading
+            error of KISS-ICP's moves it perpendicular to this).
+    """
+
+    residual: np.ndarray
+    covariance: np.ndarray
+    frames: int
+    lever: np.ndarray
 
 
 @dataclass
@@ -51,6 +70,7 @@ class ReobservationStats:
     confirmed: int = 0
     nis: list[float] = field(default_factory=list)
     ages: list[int] = field(default_factory=list)
+    pairs: list[Reobservation] = field(default_factory=list)
 
     def summary(self) -> dict[str, float | int | None]:
         values = np.asarray(self.nis)
@@ -76,13 +96,14 @@ class CornerTracker:
 
     def confirm(
         self,
+        frame: int,
         rotation: np.ndarray,
         position: np.ndarray,
         points: np.ndarray,
         covariances: np.ndarray,
     ) -> np.ndarray:
-        """Which body-frame corners ``points`` (k, d) with ``covariances`` (k, d, d), seen
-        from the pose ``rotation`` (d, d) / ``position`` (d,), are confirmed: a boolean
+        """Which body-frame corners ``points`` (k, d) with ``covariances`` (k, d, d) of
+        frame number ``frame``, seen from the pose ``rotation`` (d, d) / ``position`` (d,), are confirmed: a boolean
         mask (k,). The tracks move on to this frame's corners."""
         world = points @ rotation.T + position
         world_cov = np.einsum("ij,kjl,ml->kim", rotation, covariances, rotation)
@@ -102,6 +123,14 @@ class CornerTracker:
                     _mahalanobis_xy(world[j], world_cov[j], match.first, match.first_covariance)
                 )
                 self.stats.ages.append(match.sightings)
+                self.stats.pairs.append(
+                    Reobservation(
+                        (world[j] - match.first)[:2],
+                        (world_cov[j] + match.first_covariance)[:2, :2],
+                        frame - match.first_frame,
+                        (world[j] - position)[:2],
+                    )
+                )
                 new_tracks.append(
                     _Track(
                         match.first,
@@ -109,10 +138,11 @@ class CornerTracker:
                         world[j],
                         world_cov[j],
                         match.sightings + 1,
+                        match.first_frame,
                     )
                 )
             else:
-                new_tracks.append(_Track(world[j], world_cov[j], world[j], world_cov[j], 1))
+                new_tracks.append(_Track(world[j], world_cov[j], world[j], world_cov[j], 1, frame))
         self.tracks = new_tracks
         self.stats.corners += len(points)
         self.stats.confirmed += int(confirmed.sum())

@@ -143,7 +143,7 @@ class LidarFrontEnd:
         if corners is not None and pose is not None and len(corners.points):
             d = corners.points.shape[1]
             confirmed = self.tracker.confirm(
-                pose[:d, :d], pose[:d, 3], corners.points, corners.covariances
+                len(self.frames), pose[:d, :d], pose[:d, 3], corners.points, corners.covariances
             )
             if self.settings.confirm_corners:
                 corners = _select(corners, confirmed)
