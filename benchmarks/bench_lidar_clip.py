@@ -2,7 +2,9 @@
 30 scans, no truth), against KISS-ICP's own trajectory (the clip's natural reference):
 largest position deviation (absolute and as a percentage of KISS-ICP's path length), largest
 yaw deviation, NIS per dof and time per frame; plus the front end's frames per second
-against KISS-ICP alone on the same scans (the same KISS-ICP settings, measured in one run).
+against KISS-ICP alone with its own defaults on the same scans (both read the files with the
+same reader; rounds alternate between the two, measured in one run; the median of the
+per-round ratios), and the largest difference of their poses.
 
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_lidar_clip.py [--frames 30] [--data KEY=VALUE ...]
 """
@@ -46,11 +48,60 @@ def deviation_from(reference, pose) -> tuple[float, float, float]:
     return float(position.max()), 100.0 * float(position.max()) / path, float(max(yaw))
 
 
+def front_end_speed(frames: int, rounds: int, data: dict[str, str]) -> None:
+    """Print frames/s of KISS-ICP alone (``KISSConfig()``, voxel = range / 100 as its
+    pipeline sets it) and of the front end (KISS-ICP + corners + confirmation) with the
+    ``scans:`` defaults (or ``data``), alternating, and their largest pose difference."""
+    from kiss_icp.config import KISSConfig
+    from kiss_icp.kiss_icp import KissICP
+
+    from datasets.bags.source import nest_dotted
+    from datasets.scan_folder import ScanFolderOptions, read_scan, scans_sequence
+
+    files = sorted(CLIP.glob("*.pcd"))[:frames]
+    options = ScanFolderOptions.model_validate(nest_dotted({"max_frames": str(frames), **data}))
+    alone_seconds, front_seconds, difference = [], [], 0.0
+    for round_index in range(rounds + 1):  # the first round warms caches and imports
+        config = KISSConfig()
+        config.mapping.voxel_size = config.data.max_range / 100.0
+        alone = KissICP(config)
+        poses = []
+        started = time.perf_counter()
+        for path in files:
+            alone.register_frame(read_scan(path, 0.0).points, np.zeros(0))
+            poses.append(np.array(alone.last_pose))
+        alone_seconds.append(time.perf_counter() - started)
+        sequence, source = scans_sequence(str(CLIP), options)
+        started = time.perf_counter()
+        for _ in sequence.measurements():
+            pass
+        front_seconds.append(time.perf_counter() - started)
+        if round_index == 0:
+            alone_seconds.clear()
+            front_seconds.clear()
+        ours = np.array([frame.pose for frame in source.front_end.frames])
+        difference = max(difference, float(np.max(np.abs(ours - np.array(poses)))))
+    alone_seconds, front_seconds = np.array(alone_seconds), np.array(front_seconds)
+    corner_ms = 1e3 * sum(f.corner_seconds for f in source.front_end.frames) / len(files)
+    print(
+        f"KISS-ICP alone: {len(files) / np.median(alone_seconds):.1f} frames/s; front end: "
+        f"{len(files) / np.median(front_seconds):.1f} frames/s (corners {corner_ms:.2f} ms/frame); "
+        f"ratio {np.median(alone_seconds / front_seconds):.3f} (median of {rounds} rounds, "
+        f"range {np.min(alone_seconds / front_seconds):.3f}-{np.max(alone_seconds / front_seconds):.3f}); "
+        f"largest pose difference {difference:.1e} m"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--data", action="append", default=[], help="scans: option KEY=VALUE")
+    parser.add_argument("--rounds", type=int, default=5, help="speed rounds of each")
+    parser.add_argument("--speed-only", action="store_true", help="only the front-end speed")
     args = parser.parse_args()
+    front_end_speed(args.frames, args.rounds, dict(a.split("=", 1) for a in args.data))
+    if args.speed_only:
+        return
     options = {"max_frames": str(args.frames), **dict(a.split("=", 1) for a in args.data)}
     sequence = load_dataset(f"scans:{CLIP}", 0, options)
     started = time.perf_counter()

@@ -122,22 +122,45 @@ def test_kiss_icp_max_range_comes_from_the_first_scan_and_is_recorded() -> None:
     directions = rng.normal(size=(20000, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     outdoor = directions * rng.uniform(1.0, 78.0, (20000, 1))
-    assert range_from_scan(outdoor) == 80.0
-    assert range_from_scan(directions * rng.uniform(0.5, 6.0, (20000, 1))) == 10.0  # floor
-    assert range_from_scan(directions * 500.0) == 100.0  # KISS-ICP's own ceiling
+    assert range_from_scan(outdoor)[0] == 100.0  # outdoors: KISS-ICP's own default
+    assert range_from_scan(directions * 500.0)[0] == 100.0
+    corridor = directions * rng.uniform(0.5, 18.0, (20000, 1))
+    assert range_from_scan(corridor) == (
+        20.0,
+        "first scan (short-range: 99.9th range percentile 18.0 m)",
+    )
+    assert range_from_scan(directions * rng.uniform(0.5, 6.0, (20000, 1)))[0] == 10.0  # floor
 
 
-def test_the_real_kitti_clip_gets_its_range_from_its_first_scan() -> None:
-    from workbench.registry import load_dataset
+def test_on_the_real_kitti_clip_the_default_front_end_is_kiss_icp_alone() -> None:
+    """With no options, the front end's poses on the real clip are those of KISS-ICP run
+    alone with its own defaults (``KISSConfig()``, voxel from its max range as its pipeline
+    does), and the range it used is recorded with where it came from."""
+    from kiss_icp.config import KISSConfig
+    from kiss_icp.kiss_icp import KissICP
+
+    from datasets.scan_folder import ScanFolderOptions, read_scan, scans_sequence
 
     clip = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti-hdl64-clip"
     if not clip.is_dir():
         pytest.skip("../shared/data/kitti-hdl64-clip (real data) absent")
-    sequence = load_dataset(f"scans:{clip}", 0, {"max_frames": "2"})
+    sequence, source = scans_sequence(str(clip), ScanFolderOptions())
     for _ in sequence.measurements():
         pass
     assert sequence.metadata["kiss_icp"] == {
-        "max_range_m": 80.0,
-        "voxel_size_m": 0.8,
-        "max_range_source": "first scan (99.9th range percentile)",
+        "max_range_m": 100.0,
+        "voxel_size_m": 1.0,
+        "max_range_source": "KISS-ICP default (first scan's 99.9th range percentile 78.2 m)",
     }
+    config = KISSConfig()
+    config.mapping.voxel_size = config.data.max_range / 100.0  # KISS-ICP's pipeline rule
+    alone = KissICP(config)
+    poses = []
+    for path in sorted(clip.glob("*.pcd")):
+        alone.register_frame(read_scan(path, 0.0).points, np.zeros(0))
+        poses.append(np.array(alone.last_pose))
+    ours = np.array([frame.pose for frame in source.front_end.frames])
+    assert ours.shape == (30, 4, 4)
+    assert np.max(np.abs(ours - np.array(poses))) < 1e-9
+    # and the clip moves: 30 frames of a car, not a standstill that any setting matches
+    assert np.linalg.norm(ours[-1, :3, 3]) > 10.0

@@ -109,18 +109,30 @@ class CornerTracker:
         world_cov = np.einsum("ij,kjl,ml->kim", rotation, covariances, rotation)
         confirmed = np.zeros(len(points), dtype=bool)
         new_tracks: list[_Track] = []
+        distances = _pairwise_mahalanobis_xy(
+            world,
+            world_cov,
+            np.array([track.last for track in self.tracks]).reshape(-1, world.shape[1]),
+            np.array([track.last_covariance for track in self.tracks]).reshape(
+                -1, *world_cov.shape[1:]
+            ),
+        )
         for j in range(len(points)):
             best, match = np.inf, None
-            for track in self.tracks:
-                distance = _mahalanobis_xy(
-                    world[j], world_cov[j], track.last, track.last_covariance
-                )
-                if distance < best:
-                    best, match = distance, track
+            if self.tracks:
+                nearest = int(np.argmin(distances[j]))
+                best, match = float(distances[j, nearest]), self.tracks[nearest]
             if match is not None and best <= self.gate:
                 confirmed[j] = True
                 self.stats.nis.append(
-                    _mahalanobis_xy(world[j], world_cov[j], match.first, match.first_covariance)
+                    float(
+                        _pairwise_mahalanobis_xy(
+                            world[j : j + 1],
+                            world_cov[j : j + 1],
+                            match.first[None],
+                            match.first_covariance[None],
+                        )[0, 0]
+                    )
                 )
                 self.stats.ages.append(match.sightings)
                 self.stats.pairs.append(
@@ -149,8 +161,15 @@ class CornerTracker:
         return confirmed
 
 
-def _mahalanobis_xy(a: np.ndarray, a_cov: np.ndarray, b: np.ndarray, b_cov: np.ndarray) -> float:
-    """Squared Mahalanobis distance of the horizontal difference of two points."""
-    difference = (a - b)[:2]
-    covariance = (a_cov + b_cov)[:2, :2]
-    return float(difference @ np.linalg.solve(covariance, difference))
+def _pairwise_mahalanobis_xy(
+    points: np.ndarray, covariances: np.ndarray, others: np.ndarray, other_covariances: np.ndarray
+) -> np.ndarray:
+    """(k, m) squared Mahalanobis distances of the horizontal differences of ``points``
+    (k, d) and ``others`` (m, d) [m], under the sums of their covariances (k, d, d) and
+    (m, d, d) [m^2]: the closed-form 2x2 inverse, every pair at once."""
+    dx = points[:, None, 0] - others[None, :, 0]
+    dy = points[:, None, 1] - others[None, :, 1]
+    sxx = covariances[:, None, 0, 0] + other_covariances[None, :, 0, 0]
+    sxy = covariances[:, None, 0, 1] + other_covariances[None, :, 0, 1]
+    syy = covariances[:, None, 1, 1] + other_covariances[None, :, 1, 1]
+    return (syy * dx * dx - 2.0 * sxy * dx * dy + sxx * dy * dy) / (sxx * syy - sxy * sxy)

@@ -180,11 +180,10 @@ class LidarFrontEnd:
         if settings is None or settings.max_range_m is None or not self.frames:
             return {}
         voxel = settings.voxel_size_m or settings.max_range_m / 100.0
-        derived = self.settings.kiss.max_range_m is None
         return {
             "max_range_m": float(settings.max_range_m),
             "voxel_size_m": float(voxel),
-            "max_range_source": "first scan (99.9th range percentile)" if derived else "given",
+            "max_range_source": self._odometry.range_source,
         }
 
     @property

@@ -267,12 +267,13 @@ def bag_command(
     kiss = source.front_end.kiss_settings
     if kiss is not None:
         voxel = kiss.voxel_size_m if kiss.voxel_size_m is not None else kiss.max_range_m / 100.0
-        given = settings.kiss.max_range_m is not None
+        source_of_range = source.front_end.resolved().get("max_range_source", "given")
         front["kiss_icp_max_range_m"] = kiss.max_range_m
+        front["kiss_icp_max_range_source"] = source_of_range
         front["kiss_icp_voxel_size_m"] = voxel
         typer.echo(
-            f"front end: KISS-ICP max range {kiss.max_range_m:g} m "
-            f"({'given' if given else 'from the first scan'}), voxel {voxel:g} m",
+            f"front end: KISS-ICP max range {kiss.max_range_m:g} m ({source_of_range}), "
+            f"voxel {voxel:g} m",
             err=True,
         )
     write_atomic(front_dir / "metrics.json", dump_json(front))
@@ -386,9 +387,9 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 "--threads",
                 min=0,
-                help="KISS-ICP threads (1, the default: identical results on any machine; 0: all)",
+                help="KISS-ICP threads (0, KISS-ICP's default: all cores; 1: bit-identical results on any machine)",
             ),
-        ] = 1,
+        ] = 0,
     ) -> None:
         """Lidar bag end to end: KISS-ICP + corners, every estimator, a comparison table."""
         rows = bag_command(
