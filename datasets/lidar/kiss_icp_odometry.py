@@ -131,7 +131,10 @@ def range_from_scan(points: np.ndarray) -> tuple[float, str]:
         return default, "KISS-ICP default (first scan empty)"
     percentile = float(np.percentile(ranges, 99.9))
     if percentile >= 0.5 * default:
-        return default, f"KISS-ICP default (first scan's 99.9th range percentile {percentile:.1f} m)"
+        return (
+            default,
+            f"KISS-ICP default (first scan's 99.9th range percentile {percentile:.1f} m)",
+        )
     derived = float(max(5.0 * np.ceil(percentile / 5.0), 10.0))
     return derived, f"first scan (short-range: 99.9th range percentile {percentile:.1f} m)"
 
