@@ -19,7 +19,7 @@ from workbench.metrics.summary import compute_metrics, smoothed_key
 REQUIRED_KEYS = (
     "ate_rmse_m", "ate_rmse_raw_m", "rpe_trans_rmse_m", "rpe_rot_rmse_deg", "final_orientation_error_deg",
     "nees_pose_mean", "nees_velocity_mean", "nees_gyro_bias_mean", "nees_accel_bias_mean", "nees_landmarks_mean",
-    "nees_pose_inside_fraction", "nis_mean", "nis_dof", "nis_inside_fraction", "landmark_rmse_m", "landmarks_mapped",
+    "nees_pose_inside_fraction", "nis_mean", "nis_dof", "nis_inside_fraction", "landmark_rmse_m", "landmarks_mapped", "landmarks_in_map",
     "association_precision", "association_recall", "loop_closures", "loop_closure_precision", "steps",
     "time_per_step_ms_median", "time_per_step_ms_p99", "gps_holdout_rmse_m", "ate_rmse_smoothed_m",
 )  # fmt: skip
@@ -129,6 +129,7 @@ def test_known_errors_give_known_metrics() -> None:
     assert metrics["nees_landmarks_mean"] == pytest.approx(1.0, rel=1e-9)
     assert metrics["landmark_rmse_m"] == pytest.approx(0.2, rel=1e-9)
     assert metrics["landmarks_mapped"] == 5
+    assert metrics["landmarks_in_map"] == 5
     assert metrics["nis_mean"] == pytest.approx(9.0)
     assert metrics["nis_dof"] == 2
     assert metrics["nis_inside_fraction"] == pytest.approx(0.75)
@@ -185,6 +186,18 @@ def test_robocentric_estimate_without_a_world_pose_and_without_truth() -> None:
     no_truth = compute_metrics(estimate, Sequence("no-truth", 3, frozenset(), lambda: iter(())))
     json.dumps(no_truth, allow_nan=False)
     assert no_truth["nees_velocity_mean"] is None and no_truth["association_precision"] is None
+    assert no_truth["landmarks_in_map"] is None  # no map at all
+
+
+def test_a_map_without_truth_still_has_a_size() -> None:
+    from workbench.metrics.summary import map_metrics
+
+    final_map = LandmarkMap(ids=np.arange(7), positions=np.zeros((7, 3)))
+    assert map_metrics(final_map, None, {}) == {
+        "landmark_rmse_m": None,
+        "landmarks_mapped": None,
+        "landmarks_in_map": 7,
+    }
 
 
 def test_planar_estimate_uses_se2_alignment() -> None:

@@ -51,6 +51,7 @@ class Reobservation:
         residual: now minus first, world frame (2,) [m].
         covariance: the two corners' covariances summed (2, 2) [m^2].
         frames: frames between the two sightings.
+        frame: the frame of the current sighting (the first is ``frame - frames``).
         lever: the corner relative to the vehicle now, world frame (2,) [m] (a heading
             error of KISS-ICP's moves it perpendicular to this).
     """
@@ -59,6 +60,7 @@ class Reobservation:
     covariance: np.ndarray
     frames: int
     lever: np.ndarray
+    frame: int
 
 
 @dataclass
@@ -141,6 +143,7 @@ class CornerTracker:
                         (world_cov[j] + match.first_covariance)[:2, :2],
                         frame - match.first_frame,
                         (world[j] - position)[:2],
+                        frame,
                     )
                 )
                 new_tracks.append(

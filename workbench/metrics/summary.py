@@ -31,7 +31,9 @@ innovations: ``nis_per_dof`` (every update's stacked NIS summed over the summed 
     ``nis_below_95_fraction`` (one-sided, Guerreiro eq. (11)).
 map (``Estimate.landmarks`` against ``GroundTruth.landmarks``; estimator ids mapped to true
 ids by ``data_association.landmark_id_mapping``: majority true id of the association
-records, else the same id): ``landmark_rmse_m``, ``landmarks_mapped``.
+records, else the same id): ``landmark_rmse_m``, ``landmarks_mapped`` (landmarks matched to a
+    true one; None without a true map); ``landmarks_in_map`` (every landmark of the final
+    map, with or without truth: a recording without truth still says how big its map is).
 association: ``association_rejected_fraction``, ``association_ambiguous_fraction`` (of all
     sightings: not used), ``association_inflated_fraction`` (used with inflated noise: a
     known id outside the gate), ``association_precision``, ``association_recall``,
@@ -245,13 +247,15 @@ def nis_metrics(estimate: Estimate) -> Metrics:
 def map_metrics(
     final_map: LandmarkMap | None, ground_truth: GroundTruth | None, mapping: dict[int, int]
 ) -> Metrics:
-    """RMSE [m] of the final map's mapped landmarks against the truth, and their count."""
+    """RMSE [m] of the final map's mapped landmarks against the truth and their count, and
+    the size of the final map."""
+    in_map = None if final_map is None else int(len(final_map))
     if final_map is None or ground_truth is None or ground_truth.landmarks is None:
-        return {"landmark_rmse_m": None, "landmarks_mapped": None}
+        return {"landmark_rmse_m": None, "landmarks_mapped": None, "landmarks_in_map": in_map}
     errors, valid = landmark_errors(final_map, mapping, ground_truth)
     count = int(np.sum(valid))
     rmse = _rmse(np.linalg.norm(errors, axis=1)) if count else None
-    return {"landmark_rmse_m": rmse, "landmarks_mapped": count}
+    return {"landmark_rmse_m": rmse, "landmarks_mapped": count, "landmarks_in_map": in_map}
 
 
 def association_metrics(estimate: Estimate, ground_truth: GroundTruth | None) -> Metrics:

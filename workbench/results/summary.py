@@ -39,6 +39,7 @@ ACCURACY_KEYS = (
     "gps_holdout_rmse_m",
 )
 MAP_KEYS = (
+    "landmarks_in_map",
     "landmarks_mapped",
     "landmark_rmse_m",
     "association_precision",

@@ -59,7 +59,7 @@ STAT_COLUMNS = (
     StatColumn("gps_holdout_rmse_m", "GPS hold-out [m]"),
 )
 TAIL_COLUMNS = (
-    StatColumn("landmarks_mapped", "landmarks"),
+    StatColumn("landmarks_in_map", "landmarks"),
     StatColumn("association_precision", "assoc. precision"),
     StatColumn("association_rejected_fraction", "rejected"),
     StatColumn("time_per_step_ms_median", "time/step [ms]"),
