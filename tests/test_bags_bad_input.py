@@ -208,13 +208,22 @@ def test_empty_and_nan_clouds_and_backward_stamps_are_counted(tmp_path):
         "/imu at t=0.500000000: stamp went backwards (or repeated) (previous 1.020000000)" in line
         for line in report.lines()
     )
-    # the whole pipeline (KISS-ICP on the two usable clouds) runs and still reports the skips
-    options = {"kiss.max_num_threads": "1", "max_skipped_fraction": "1"}
+    # the whole pipeline (KISS-ICP on the two usable clouds) runs and still reports the skips;
+    # without the IMU, whose samples end at 1.04 s, the clouds' interval is the time base
+    options = {"kiss.max_num_threads": "1", "max_skipped_fraction": "1", "imu": "false"}
     sequence = load_bag(str(path), 0, options)
     kinds = [type(m).__name__ for m in sequence.measurements()]
     assert kinds.count("PointCloud") == 2 and kinds.count("Odometry") == 1
     warned = sequence.metadata["warnings"]
     assert any("skipped 2 x /cloud at t=1.100000000: empty cloud" in line for line in warned)
+    # with it, the clouds after its last sample are trimmed, counted and said
+    sequence = load_bag(str(path), 0, {**options, "imu": "true"})
+    kinds = [type(m).__name__ for m in sequence.measurements()]
+    assert kinds.count("PointCloud") == 1
+    assert (
+        "trimmed 3 x /cloud at t=1.100000000..1.300000000: after the end of the common time "
+        "base t=1.040000000 (last stamp on /imu)" in sequence.metadata["warnings"]
+    )
 
 
 def test_cli_error_is_one_line_and_earlier_results_stay_valid(tmp_path, synthetic, capsys):

@@ -10,6 +10,11 @@ stamp is the sweep start, so stamps are not ordered across topics. A small reord
 (``reorder_window_s``) re-sorts by stamp; a message whose stamp is older than one already
 emitted on its topic (stamps going backwards), or older than the buffer can repair, is
 skipped and counted in the ``ReadReport`` (never silently reordered beyond the window).
+
+Time base: sensors rarely start together (an IMU driver started before the lidar records
+samples before the first sweep). ``topic_spans`` reads each topic's first and last stamp from
+the two ends of the bag, ``common_time_base`` intersects them (``TimeBase``), and
+``read_stream`` drops, and counts in the ``ReadReport``, every message stamped outside it.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ from __future__ import annotations
 import heapq
 import itertools
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +54,9 @@ class ReadReport:
         messages: messages read per topic.
         missing: topic -> (messages read, messages its index lists) where fewer were read
             (a damaged bag whose index promises more than its chunks hold).
+        trimmed: ``(topic, "before" | "after")`` -> [count, first stamp, last stamp, the
+            ``TimeBase`` bound's description]: messages outside the common time base
+            (not skips: they do not count towards ``max_skipped_fraction``).
     """
 
     skipped: Counter = field(default_factory=Counter)
@@ -56,6 +64,7 @@ class ReadReport:
     nonfinite_points: int = 0
     messages: Counter = field(default_factory=Counter)
     missing: dict[str, tuple[int, int]] = field(default_factory=dict)
+    trimmed: dict[tuple[str, str], list] = field(default_factory=dict)
 
     def skip(self, topic: str, reason: str, stamp_s: float, detail: str = "") -> None:
         key = (topic, reason)
@@ -64,16 +73,92 @@ class ReadReport:
             key, f"{topic} at t={stamp_s:.9f}: {reason}{(' (' + detail + ')') if detail else ''}"
         )
 
+    def trim(self, topic: str, stamp_s: float, time_base: TimeBase) -> None:
+        """Count a message stamped outside ``time_base`` (before its start or after its end)."""
+        side = "before" if stamp_s < time_base.start_s else "after"
+        entry = self.trimmed.get((topic, side))
+        if entry is None:
+            bound = (
+                f"the start of the common time base t={time_base.start_s:.9f} ({time_base.start_by})"
+                if side == "before"
+                else f"the end of the common time base t={time_base.end_s:.9f} ({time_base.end_by})"
+            )
+            self.trimmed[(topic, side)] = [1, stamp_s, stamp_s, bound]
+        else:
+            entry[0] += 1
+            entry[1], entry[2] = min(entry[1], stamp_s), max(entry[2], stamp_s)
+
     def lines(self) -> list[str]:
-        """One line per skip kind: ``N x topic: reason (first at t=...)``."""
+        """One line per skip kind: ``N x topic: reason (first at t=...)``, then the
+        messages trimmed to the common time base, then topics read short of their index."""
         lines = [
             f"skipped {count} x {self.examples[key]}" for key, count in sorted(self.skipped.items())
+        ]
+        lines += [
+            f"trimmed {count} x {topic} at t={first:.9f}..{last:.9f}: {side} {bound}"
+            for (topic, side), (count, first, last, bound) in sorted(self.trimmed.items())
         ]
         lines += [
             f"read {read} of the {indexed} messages its index lists on {topic}"
             for topic, (read, indexed) in sorted(self.missing.items())
         ]
         return lines
+
+
+@dataclass(frozen=True)
+class TimeBase:
+    """The common interval of the streams a bag source uses: every message stamped before
+    ``start_s`` or after ``end_s`` [s] is dropped and counted (``ReadReport.trimmed``).
+
+    Attributes:
+        start_s: the latest first stamp of the defining streams.
+        end_s: the earliest last stamp of the defining streams.
+        start_by: which stream sets the start (for messages), e.g. ``first stamp on /points``.
+        end_by: which stream sets the end.
+        spans: ``{stream: (first, last)}`` [s] of every defining stream.
+    """
+
+    start_s: float
+    end_s: float
+    start_by: str
+    end_by: str
+    spans: dict[str, tuple[float, float]]
+
+    def contains(self, stamp_s: float) -> bool:
+        return self.start_s <= stamp_s <= self.end_s
+
+    def as_dict(self) -> dict:
+        """JSON-ready, for a sequence's metadata."""
+        return {
+            "start_s": self.start_s,
+            "end_s": self.end_s,
+            "start_by": self.start_by,
+            "end_by": self.end_by,
+            "spans": {name: list(span) for name, span in self.spans.items()},
+        }
+
+
+def common_time_base(path: Path, spans: dict[str, tuple[float, float]]) -> TimeBase | None:
+    """``[max of the first stamps, min of the last stamps]`` of ``spans`` (None when empty);
+    ``InputError`` naming every span when they do not overlap."""
+    if not spans:
+        return None
+    start_topic = max(spans, key=lambda name: spans[name][0])
+    end_topic = min(spans, key=lambda name: spans[name][1])
+    start, end = spans[start_topic][0], spans[end_topic][1]
+    if start > end:
+        listed = "; ".join(f"{name} t={a:.3f}..{b:.3f}" for name, (a, b) in spans.items())
+        raise InputError(
+            f"{path}: the streams do not overlap in time ({listed}): "
+            f"{start_topic} starts after {end_topic} ends"
+        )
+    return TimeBase(
+        start_s=start,
+        end_s=end,
+        start_by=f"first stamp on {start_topic}",
+        end_by=f"last stamp on {end_topic}",
+        spans=dict(spans),
+    )
 
 
 @dataclass(frozen=True)
@@ -211,12 +296,21 @@ def stamp_seconds(message, log_ns: int) -> float:
 
 
 def iter_messages(
-    reader, path: Path, topics: list[str]
+    reader,
+    path: Path,
+    topics: list[str],
+    start_ns: int | None = None,
+    stop_ns: int | None = None,
+    wanted: Callable[[str], bool] | None = None,
 ) -> Iterator[tuple[str, str, float, object]]:
-    """``(topic, type, stamp [s], message)`` in log order; rosbags failures -> ``InputError``
-    naming the file, the topic and the time of the last good message."""
+    """``(topic, type, stamp [s], message)`` in log order, of log times in
+    ``[start_ns, stop_ns)`` when given, and only of topics ``wanted(topic)`` accepts at the
+    time (the others are passed over undecoded); rosbags failures -> ``InputError`` naming
+    the file, the topic and the time of the last good message."""
     connections = [connection for connection in reader.connections if connection.topic in topics]
-    stream = reader.messages(connections=connections)
+    if not connections:
+        return
+    stream = reader.messages(connections=connections, start=start_ns, stop=stop_ns)
     last = "the start"
     while True:
         try:
@@ -228,6 +322,8 @@ def iter_messages(
                 f"{path}: unreadable after {last} ({type(error).__name__}: {error})"
             ) from None
         connection, log_ns, raw = item
+        if wanted is not None and not wanted(connection.topic):
+            continue
         try:
             message = reader.deserialize(raw, connection.msgtype)
         except Exception as error:
@@ -252,8 +348,9 @@ def pose_of(message, msgtype: str) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class ReadSettings:
-    """How to convert: point time unit, GPS origin and default GPS sigma, reorder window, and
-    the lidar-to-body extrinsic (``p_body = R p_lidar + t``), if any."""
+    """How to convert: point time unit, GPS origin and default GPS sigma, reorder window,
+    the lidar-to-body extrinsic (``p_body = R p_lidar + t``), if any, and the common time
+    base to trim to, if any."""
 
     time_unit: str = "auto"
     lidar_to_body: np.ndarray | None = None  # (4, 4) extrinsic applied to every cloud
@@ -262,6 +359,7 @@ class ReadSettings:
     reorder_window_s: float = 1.0
     max_missing_fraction: float = 0.01
     max_skipped_fraction: float = 0.05
+    time_base: TimeBase | None = None  # messages stamped outside it are trimmed and counted
 
 
 def convert(
@@ -366,9 +464,18 @@ def read_stream(
                     topic, "stamp older than the reorder window", stamp, f"already at {emitted:.9f}"
                 )
                 continue
+            outside = settings.time_base is not None and not settings.time_base.contains(stamp)
+            if outside and msgtype == POINTCLOUD2:  # trimmed undecoded: decoding is the cost
+                last_on_topic[topic] = stamp
+                report.trim(topic, stamp, settings.time_base)
+                continue
+            # other messages are checked first, so a NaN IMU sample counts as a skip wherever
             measurement = convert(path, topic, msgtype, stamp, message, settings, report)
             last_on_topic[topic] = stamp
             if measurement is None:
+                continue
+            if outside:
+                report.trim(topic, stamp, settings.time_base)
                 continue
             heapq.heappush(heap, (stamp, next(counter), topic, measurement))
             while heap and heap[0][0] < stamp - settings.reorder_window_s:
@@ -379,6 +486,61 @@ def read_stream(
             yield out_topic, out
         _check_counts(path, reader, topics, settings, report)
     check_skips(path, topics, settings.max_skipped_fraction, report)
+
+
+def topic_spans(
+    reader, path: Path, topics: list[str], time_unit: str = "auto"
+) -> dict[str, tuple[float, float]]:
+    """``{topic: (first, last)}`` header stamps [s] of each topic that has messages, read
+    from the two ends of the bag only: the first message of each topic in log order (what
+    ``read_stream`` accepts first: a later one stamped earlier is skipped as going
+    backwards), and the largest stamp among the messages logged in a last window (1 s,
+    doubled until every topic has a message in it). A lidar topic's span ends where its
+    last sweep ends: the last cloud's stamp plus its largest per-point time (where the
+    deskewing front end stamps that frame's odometry and corners), so the IMU samples that
+    sweep needs are kept.
+
+    A message the stream will skip (an empty cloud, a NaN IMU sample) still counts here:
+    that can only widen a span, never put a kept stamp before the common start."""
+    counts = {
+        topic: int(reader.topics[topic].msgcount) for topic in topics if topic in reader.topics
+    }
+    present = [topic for topic, count in counts.items() if count > 0]
+    if not present:
+        return {}
+    first: dict[str, float] = {}
+    for topic, _, stamp, _ in iter_messages(
+        reader, path, present, wanted=lambda topic: topic not in first
+    ):
+        first[topic] = stamp
+        if len(first) == len(present):
+            break
+    end_ns, begin_ns = int(reader.end_time), int(reader.start_time)
+    window_ns = 1_000_000_000
+    while True:
+        start_ns = max(begin_ns, end_ns - window_ns)
+        last: dict[str, tuple[float, object, str]] = {}
+        for topic, msgtype, stamp, message in iter_messages(reader, path, present, start_ns):
+            if topic not in last or stamp > last[topic][0]:
+                last[topic] = (stamp, message, msgtype)
+        if len(last) == len(present) or start_ns <= begin_ns:
+            break
+        window_ns *= 2
+    spans = {}
+    for topic in present:
+        if topic not in first or topic not in last:
+            continue
+        stamp, message, msgtype = last[topic]
+        if msgtype == POINTCLOUD2:
+            where = f"{path}, topic {topic}, t={stamp:.9f}"
+            try:
+                times = decode_pointcloud2(message, stamp, where, time_unit).point_times
+            except InputError:  # the stream reports a broken cloud where it meets it
+                times = None
+            if times is not None and times.size:
+                stamp += float(np.max(times))
+        spans[topic] = (first[topic], stamp)
+    return spans
 
 
 def check_skips(path: Path, topics: list[str], max_fraction: float, report: ReadReport) -> None:

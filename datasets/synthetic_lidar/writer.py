@@ -3,10 +3,27 @@
 Topics: ``/points`` (sensor_msgs/PointCloud2, organized beams x columns, NaN for misses,
 per-point time field), ``/imu`` (sensor_msgs/Imu), ``/ground_truth`` (nav_msgs/Odometry in
 ROS 1, geometry_msgs/PoseStamped in ROS 2, so both ground-truth types are exercised), and
-optionally ``/gps`` (sensor_msgs/NavSatFix). The two formats also use different point
+optionally ``/gps`` (sensor_msgs/NavSatFix) and ``/wheel/odometry`` (nav_msgs/Odometry,
+``wheel_odometry_rate_hz``). The two formats also use different point
 layouts: ROS 1 Velodyne-like (``time`` float32 seconds), ROS 2 Ouster-like (``t`` uint32
 nanoseconds). A cloud's header stamp is the time of its first column; it is logged at the
 end of its sweep, as a driver would, so bag order and stamp order differ.
+
+Time: stamps are ``EPOCH_S`` + seconds from the first sweep; every topic starts there,
+except that ``imu_lead_s`` > 0 starts the IMU earlier (``floor(imu_lead_s * imu_rate_hz)``
+extra samples at negative times, as a driver started before the lidar would record), to
+exercise the bag loader's common time base (``datasets.bags.source``).
+
+Wheel odometry (``/wheel/odometry``, frame ``odom``, child ``base_link``) is deliberately
+*not* truth: the true planar increments between its samples with the distance scaled by
+``1 + WHEEL_SCALE_ERROR`` (2 %), the heading drifting by ``WHEEL_YAW_DRIFT_RAD_S`` and small
+seeded noise, composed from the true pose at its first stamp. It is the pose topic a loader
+must not take as ground truth unless told to.
+
+Randomness: one generator seeded with ``seed`` draws the lidar, IMU and GPS noise in log
+order; the IMU's lead samples and the wheel odometry draw from their own generators
+(``[seed, 1]``, ``[seed, 2]``), so the options leave every other message unchanged and the
+default options write the same bytes as before they existed.
 
 Frames: lidar = IMU = body, at ``height_m`` above the floor; world z-up.
 A sidecar JSON (``sidecar_path``) next to the bag holds the exact corners and the world
@@ -35,6 +52,10 @@ from datasets.trajectory_io import write_atomic
 GRAVITY_M_S2 = 9.81
 EPOCH_S = 1_700_000_000
 LIDAR_TOPIC, IMU_TOPIC, GT_TOPIC, GPS_TOPIC = "/points", "/imu", "/ground_truth", "/gps"
+WHEEL_TOPIC = "/wheel/odometry"
+WHEEL_SCALE_ERROR = 0.02  # wheel odometry over-reads distance by 2 %
+WHEEL_YAW_DRIFT_RAD_S = 0.01  # and its heading drifts by this rate [rad/s]
+WHEEL_NOISE_M, WHEEL_NOISE_RAD = 1e-3, 5e-4  # per-increment noise std
 
 # PointField datatype codes (sensor_msgs/PointField)
 _FLOAT32, _FLOAT64, _UINT16, _UINT32 = 7, 8, 4, 6
@@ -59,6 +80,19 @@ class LidarBagOptions(BaseModel):
     accel_noise_density: float = Field(2e-3, ge=0, description="[m/s^2/sqrt(Hz)]")
     gt_rate_hz: float = Field(50.0, gt=0, description="ground-truth rate [Hz]")
     gps_rate_hz: float = Field(0.0, ge=0, description="NavSatFix rate [Hz] (0: no GPS topic)")
+    imu_lead_s: float = Field(
+        0.0,
+        ge=0,
+        description="the IMU starts this long before the first lidar sweep [s] (extra samples "
+        "at negative times at imu_rate_hz; lidar and ground-truth timing unchanged)",
+    )
+    wheel_odometry_rate_hz: float = Field(
+        0.0,
+        ge=0,
+        description="/wheel/odometry (nav_msgs/Odometry, child base_link) rate [Hz] (0: none): "
+        "the true pose with a 2 % distance scale error, 0.01 rad/s heading drift and seeded "
+        "noise, so it is clearly not ground truth",
+    )
     gps_origin: tuple[float, float, float] = Field(
         (48.137, 11.575, 520.0), description="lat [deg], lon [deg], alt [m] of the world origin"
     )
@@ -146,22 +180,81 @@ def _events(options: LidarBagOptions) -> Iterator[tuple[int, str, float]]:
     """(log time ns, topic, stamp s) in log-time order. A cloud is logged at its sweep end."""
 
     def stream(
-        topic: str, rate: float, log_delay: float, through_end: bool = False
+        topic: str, rate: float, log_delay: float, through_end: bool = False, lead: int = 0
     ) -> Iterator[tuple[int, str, float]]:
         # ground truth runs through the end of the last sweep, so every frame can be scored
         count = int(np.floor(options.duration_s * rate + 1e-9)) + (1 if through_end else 0)
-        for k in range(count):
+        for k in range(-lead, count):
             stamp = k / rate
             yield int(round((EPOCH_S + stamp + log_delay) * 1e9)), topic, stamp
 
     streams = [
         stream(LIDAR_TOPIC, options.lidar_rate_hz, 1.0 / options.lidar_rate_hz),
-        stream(IMU_TOPIC, options.imu_rate_hz, 0.0),
+        stream(IMU_TOPIC, options.imu_rate_hz, 0.0, lead=_imu_lead_samples(options)),
         stream(GT_TOPIC, options.gt_rate_hz, 0.0, through_end=True),
     ]
     if options.gps_rate_hz > 0:
         streams.append(stream(GPS_TOPIC, options.gps_rate_hz, 0.0))
+    if options.wheel_odometry_rate_hz > 0:
+        streams.append(stream(WHEEL_TOPIC, options.wheel_odometry_rate_hz, 0.0))
     return heapq.merge(*streams)
+
+
+def _imu_lead_samples(options: LidarBagOptions) -> int:
+    """IMU samples before the first sweep: ``floor(imu_lead_s * imu_rate_hz)``."""
+    return int(np.floor(options.imu_lead_s * options.imu_rate_hz + 1e-9))
+
+
+def wheel_odometry(
+    path: LoopPath, options: LidarBagOptions, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stamps [s] (N,), planar positions (N, 2) and yaws (N,) of ``/wheel/odometry``: the true
+    increments between samples (in the previous body frame) with the distance scaled by
+    ``1 + WHEEL_SCALE_ERROR``, the heading increment plus ``WHEEL_YAW_DRIFT_RAD_S * dt``, and
+    seeded noise, composed from the true pose at the first stamp (module docstring)."""
+    rate = options.wheel_odometry_rate_hz
+    stamps = np.arange(int(np.floor(options.duration_s * rate + 1e-9))) / rate
+    truth = path.sample(options.start_s + stamps)
+    positions, yaws = np.zeros((len(stamps), 2)), np.zeros(len(stamps))
+    if not len(stamps):
+        return stamps, positions, yaws
+    positions[0], yaws[0] = truth.position[0], truth.yaw[0]
+    for k in range(1, len(stamps)):
+        c, s = np.cos(truth.yaw[k - 1]), np.sin(truth.yaw[k - 1])
+        dx, dy = truth.position[k] - truth.position[k - 1]
+        body = np.array([c * dx + s * dy, -s * dx + c * dy]) * (1.0 + WHEEL_SCALE_ERROR)
+        body += rng.normal(0.0, WHEEL_NOISE_M, 2)
+        dyaw = np.angle(np.exp(1j * (truth.yaw[k] - truth.yaw[k - 1])))
+        dyaw += WHEEL_YAW_DRIFT_RAD_S / rate + rng.normal(0.0, WHEEL_NOISE_RAD)
+        c, s = np.cos(yaws[k - 1]), np.sin(yaws[k - 1])
+        positions[k] = positions[k - 1] + np.array(
+            [c * body[0] - s * body[1], s * body[0] + c * body[1]]
+        )
+        yaws[k] = yaws[k - 1] + dyaw
+    return stamps, positions, yaws
+
+
+def _wheel_message(types, header, xy: np.ndarray, yaw: float, height_m: float):
+    """A nav_msgs/Odometry of the wheel odometry (child ``base_link``) with a stated
+    covariance (pose [x, y, z, roll, pitch, yaw] as ROS orders it); twist left zero."""
+    w, x, y, z = _quat_yaw(yaw)
+    vec = types["geometry_msgs/msg/Vector3"]
+    pose = types["geometry_msgs/msg/Pose"](
+        position=types["geometry_msgs/msg/Point"](x=float(xy[0]), y=float(xy[1]), z=height_m),
+        orientation=types["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w),
+    )
+    covariance = np.diag([0.05**2, 0.05**2, 1e-6, 1e-6, 1e-6, 0.02**2]).ravel()
+    return types["nav_msgs/msg/Odometry"](
+        header=header,
+        child_frame_id="base_link",
+        pose=types["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=covariance),
+        twist=types["geometry_msgs/msg/TwistWithCovariance"](
+            twist=types["geometry_msgs/msg/Twist"](
+                linear=vec(x=0.0, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=0.0)
+            ),
+            covariance=np.zeros(36),
+        ),
+    )
 
 
 def write_sidecar(
@@ -191,7 +284,12 @@ def write_sidecar(
             }
             for polygon in world.polygons
         ],
-        "options": options.model_dump(),
+        # options added later are listed only when used: default bags keep their sidecars
+        "options": {
+            key: value
+            for key, value in options.model_dump().items()
+            if key not in ("imu_lead_s", "wheel_odometry_rate_hz") or value
+        },
     }
     return write_atomic(sidecar_path(bag_path), json.dumps(payload, indent=1))
 
@@ -263,12 +361,21 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
             connections[GPS_TOPIC] = writer.add_connection(
                 GPS_TOPIC, "sensor_msgs/msg/NavSatFix", typestore=typestore
             )
+        if settings.wheel_odometry_rate_hz > 0:
+            connections[WHEEL_TOPIC] = writer.add_connection(
+                WHEEL_TOPIC, "nav_msgs/msg/Odometry", typestore=typestore
+            )
+            _, wheel_xy, wheel_yaw = wheel_odometry(
+                path, settings, np.random.default_rng([seed, 2])
+            )
+        lead_rng = np.random.default_rng([seed, 1])  # the IMU's lead samples (module docstring)
         imu_gyro_std = settings.gyro_noise_density * np.sqrt(settings.imu_rate_hz)
         imu_accel_std = settings.accel_noise_density * np.sqrt(settings.imu_rate_hz)
         zeros9 = np.zeros(9)
         for log_ns, topic, stamp in _events(settings):
             t = settings.start_s + stamp
-            header = _header(typestore, ros1, stamp, "base_link" if topic != GT_TOPIC else "world")
+            frame = {GT_TOPIC: "world", WHEEL_TOPIC: "odom"}.get(topic, "base_link")
+            header = _header(typestore, ros1, stamp, frame)
             if topic == LIDAR_TOPIC:
                 scan = sweep(world, path, model, t, rng)
                 cloud = np.zeros(scan.points.shape[:2], dtype=dtype)
@@ -314,8 +421,9 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
                         accel_world[2],
                     ]
                 )
-                gyro = np.array([0.0, 0.0, motion.yaw_rate[0]]) + rng.normal(0, imu_gyro_std, 3)
-                accel_body = accel_body + rng.normal(0, imu_accel_std, 3)
+                noise = lead_rng if stamp < 0 else rng
+                gyro = np.array([0.0, 0.0, motion.yaw_rate[0]]) + noise.normal(0, imu_gyro_std, 3)
+                accel_body = accel_body + noise.normal(0, imu_accel_std, 3)
                 vec = types["geometry_msgs/msg/Vector3"]
                 message = types["sensor_msgs/msg/Imu"](
                     header=header,
@@ -357,6 +465,11 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
                     )
                 else:
                     message = types["geometry_msgs/msg/PoseStamped"](header=header, pose=pose)
+            elif topic == WHEEL_TOPIC:
+                k = int(round(stamp * settings.wheel_odometry_rate_hz))  # stamps are k / rate
+                message = _wheel_message(
+                    types, header, wheel_xy[k], float(wheel_yaw[k]), model.height_m
+                )
             else:  # GPS
                 motion = path.sample(np.array([t]))
                 lat, lon, alt = enu_to_geodetic(

@@ -30,6 +30,7 @@ import numpy as np
 import typer
 
 from datasets.errors import InputError
+from datasets.lidar.corner_truth import with_true_corner_ids
 from datasets.options import build_model, parse_assignments
 from workbench.completion import estimator_names
 from workbench.estimator_settings import settings_by_estimator
@@ -176,23 +177,6 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
     return metrics
 
 
-def with_corner_ids(sequence, source):
-    """The sequence with ``GroundTruth.scan_ids`` of the front end's corner scans (true ids
-    from the sidecar, -1 for false detections), so association can be scored; unchanged
-    without a sidecar or ground-truth poses."""
-    from dataclasses import replace
-
-    from datasets.lidar.corner_truth import read_corner_truth, true_corner_ids
-
-    sidecar = sequence.metadata.get("corner_sidecar")
-    truth = sequence.ground_truth
-    if not sidecar or truth is None or truth.pose is None or not source.front_end.settings.corners:
-        return sequence
-    frames = [(f.t, f.corners.points) for f in source.front_end.frames if len(f.corners.points)]
-    scan_ids = true_corner_ids(frames, read_corner_truth(Path(sidecar)), truth.pose)
-    return replace(sequence, ground_truth=replace(truth, scan_ids=scan_ids))
-
-
 def _status(text: str, limit: int = 160) -> str:
     """One table-safe line: no newlines or pipes, at most ``limit`` characters."""
     flat = " ".join(text.split()).replace("|", "/")
@@ -281,7 +265,7 @@ def bag_command(
     for line in sequence.metadata.get("warnings") or ():
         typer.echo(f"warning: {sequence.name}: {line}", err=True)
 
-    sequence = with_corner_ids(sequence, source)
+    sequence = with_true_corner_ids(sequence, source.front_end)
     rows = [{"estimator": "kiss-icp (front end)", "status": "ok"}]
     front_note = f"front end kiss-icp: {front['kiss_icp_ms_median']:.3g} ms per frame (median)" + (
         f", ATE {front['kiss_icp_ate_rmse_m']:.4g} m against {sequence.metadata['reference_source']}"
