@@ -18,6 +18,15 @@ from filters.ekf_slam.motion import VehicleMean, predict_odometry_3d
 from tests.test_ekf_slam import numeric_transition, random_mean
 
 CLIP = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti-hdl64-clip"
+# every estimator that runs on lidar odometry and corners alone
+LIDAR_ONLY = (
+    "dead-reckoning",
+    "ekf-slam",
+    "sensor-based",
+    "smoother-isam2",
+    "smoother-fixed-lag",
+    "smoother-batch",
+)
 needs_clip = pytest.mark.skipif(
     not CLIP.is_dir(), reason="../shared/data/kitti-hdl64-clip (real data) absent"
 )
@@ -123,14 +132,7 @@ def test_every_lidar_only_estimator_runs_on_the_real_clip() -> None:
     name = f"scans:{CLIP}"
     sequence = load_dataset(name, 0, {"max_frames": "12"})
     poses = {}
-    for estimator in (
-        "dead-reckoning",
-        "ekf-slam",
-        "sensor-based",
-        "smoother-isam2",
-        "smoother-fixed-lag",
-        "smoother-batch",
-    ):
+    for estimator in LIDAR_ONLY:
         estimate = execute(RunRequest(estimator, name), sequence=sequence).estimate
         history = estimate.causal if estimate.causal.pose else estimate.smoothed
         poses[estimator] = history.pose

@@ -248,16 +248,14 @@ def bag_command(
         write_tum(front_dir / "kiss_icp.tum", trajectory)
     write_atomic(front_dir / "corners.csv", corners_csv(source.front_end.frames))
     front = front_end_metrics(sequence, source, seconds)
-    kiss = source.front_end.kiss_settings
-    if kiss is not None:
-        voxel = kiss.voxel_size_m if kiss.voxel_size_m is not None else kiss.max_range_m / 100.0
-        source_of_range = source.front_end.resolved().get("max_range_source", "given")
-        front["kiss_icp_max_range_m"] = kiss.max_range_m
-        front["kiss_icp_max_range_source"] = source_of_range
-        front["kiss_icp_voxel_size_m"] = voxel
+    resolved = source.front_end.resolved()  # the range, its origin and the voxel
+    if resolved:
+        front["kiss_icp_max_range_m"] = resolved["max_range_m"]
+        front["kiss_icp_max_range_source"] = resolved["max_range_source"]
+        front["kiss_icp_voxel_size_m"] = resolved["voxel_size_m"]
         typer.echo(
-            f"front end: KISS-ICP max range {kiss.max_range_m:g} m ({source_of_range}), "
-            f"voxel {voxel:g} m",
+            f"front end: KISS-ICP max range {resolved['max_range_m']:g} m "
+            f"({resolved['max_range_source']}), voxel {resolved['voxel_size_m']:g} m",
             err=True,
         )
     write_atomic(front_dir / "metrics.json", dump_json(front))
