@@ -29,7 +29,7 @@ from datasets.lidar.frontend import (
     LidarSourceOptions,
     with_front_end,
 )
-from datasets.lidar.kiss_icp_odometry import KissIcpSettings
+from datasets.lidar.kiss_icp_odometry import KissIcpSettings, pose_time
 from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model
 from datasets.sequence import InitialState, NoiseSpec, Sequence
@@ -322,8 +322,16 @@ def scans_sequence(
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
     reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
 
+    # the sequence starts at the front end's first pose (the first sweep's end when it is
+    # deskewed), where the first odometry increment starts; datasets.bags.reader
+    # .start_at_first_pose says why
+    first = next(clouds(), None) if settings.odometry and settings.kiss.deskew else None
+    start = float(times[0]) if first is None else pose_time(first.t, first.point_times)
+
     def stream():
-        yield from with_front_end(clouds(), front_end, settings.point_clouds, settings.max_frames)
+        yield from with_front_end(
+            clouds(), front_end, settings.point_clouds, settings.max_frames, emit_from_s=start
+        )
         resolved.update(front_end.resolved())
         reobservation.update(front_end.tracker.stats.summary())
         for line in source.report.lines():
@@ -347,7 +355,7 @@ def scans_sequence(
             landmark_sigma_m=settings.corner.range_sigma_m, rate_hz={"lidar": settings.rate_hz}
         ),
         initial_state=InitialState(
-            t=float(times[0]), position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0])
+            t=start, position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0])
         ),
         metadata={
             "source": str(folder),

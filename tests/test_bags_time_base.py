@@ -15,6 +15,7 @@ default ``anchor_source=known`` ("anchors=3 known landmarks requested, the datas
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,7 @@ from datasets.bags.reader import (
     topic_types,
 )
 from datasets.errors import InputError
-from datasets.measurements import ImuSample, PointCloud
+from datasets.measurements import Odometry, PointCloud
 from datasets.synthetic_lidar import write_lidar_bag
 from datasets.synthetic_lidar.writer import EPOCH_S, WHEEL_SCALE_ERROR, WHEEL_YAW_DRIFT_RAD_S
 from workbench.registry import ESTIMATORS, load_dataset
@@ -119,25 +120,33 @@ def test_common_time_base_is_the_overlap_of_the_spans() -> None:
 
 
 def _check_time_base(sequence) -> list:
-    """The stream is time-ordered, starts no earlier than the initial state, which is the
-    first lidar sweep; the IMU's lead is trimmed and said so. Returns the measurements."""
+    """The stream is time-ordered and starts at the initial state, which is the end of the
+    first lidar sweep (the first KISS-ICP pose): the first odometry increment starts there,
+    the first sweep is read but not emitted, and the IMU's lead and the samples during the
+    first sweep are trimmed and said so. Returns the measurements."""
     measurements = list(sequence.measurements())
     stamps = np.array([m.t for m in measurements])
     assert np.all(np.diff(stamps) >= 0)
     base = sequence.metadata["time_base"]
+    first_sweep = _messages(sequence.metadata["source"], "/points")[0]
+    sweep_end = first_sweep.t + float(np.max(first_sweep.point_times))
+    assert base["first_cloud_s"] == first_sweep.t and sweep_end > first_sweep.t + 0.09
+    assert sequence.initial_state.t == base["start_s"] == sweep_end
+    assert base["start_by"] == "end of the first sweep on /points, the first lidar pose"
+    assert stamps[0] >= sequence.initial_state.t
     first_cloud = next(m.t for m in measurements if isinstance(m, PointCloud))
-    first_imu = next(m.t for m in measurements if isinstance(m, ImuSample))
-    assert sequence.initial_state.t == base["start_s"] == first_cloud == stamps[0]
-    assert first_imu == first_cloud  # the IMU sample at the first sweep is kept
-    assert base["start_by"] == "first stamp on /points"
+    assert first_cloud > sweep_end  # the first sweep itself is not in the stream
+    first_odometry = next(m for m in measurements if isinstance(m, Odometry))
+    assert first_odometry.t - first_odometry.dt == pytest.approx(sequence.initial_state.t, abs=1e-9)
     assert base["spans"]["/imu"][0] == pytest.approx(EPOCH_S - 0.05, abs=1e-6)
     assert stamps[-1] <= base["spans"]["/points"][1] + 1e-9  # the last sweep's end
-    lead = [m.t for m in _messages(sequence.metadata["source"], "/imu") if m.t < first_cloud]
-    assert len(lead) == 10
+    before = [m.t for m in _messages(sequence.metadata["source"], "/imu") if m.t < sweep_end]
+    assert len(before) > 10  # the 10 of the lead and those of the first sweep
     trimmed = [w for w in sequence.metadata["warnings"] if w.startswith("trimmed")]
     assert trimmed == [
-        f"trimmed 10 x /imu at t={lead[0]:.9f}..{lead[-1]:.9f}: before the start "
-        f"of the common time base t={first_cloud:.9f} (first stamp on /points)"
+        f"trimmed {len(before)} x /imu at t={before[0]:.9f}..{before[-1]:.9f}: before the start "
+        f"of the common time base t={sweep_end:.9f} (end of the first sweep on /points, the "
+        "first lidar pose)"
     ]
     return measurements
 
@@ -197,9 +206,13 @@ def test_leading_imu_with_the_truth_named(bags) -> None:
     assert sequence.metadata["reference_source"] == "topic /ground_truth"
     assert not any("not taken as truth" in w for w in sequence.metadata["warnings"])
     _check_time_base(sequence)
-    # the initial state is the truth at the start of the common interval (= its first pose)
-    assert truth.t[0] == sequence.initial_state.t
-    np.testing.assert_allclose(sequence.initial_state.position, truth.positions[0], atol=1e-9)
+    # the initial state is the truth at the start of the common interval (the first lidar
+    # pose, one sweep after the truth's first pose: 0.15 m further on at 1.5 m/s)
+    start = sequence.initial_state.t
+    assert truth.t[0] < start
+    expected = [np.interp(start, truth.t, truth.positions[:, axis]) for axis in range(3)]
+    np.testing.assert_allclose(sequence.initial_state.position, expected, atol=1e-9)
+    assert np.linalg.norm(sequence.initial_state.position - truth.positions[0]) > 0.1
     _assert_every_estimator_runs(sequence, name)
 
 
@@ -227,7 +240,7 @@ def test_workbench_bag_command_runs_every_estimator(bags, tmp_path, capsys) -> N
     argv = ["bag", str(bags["ros2"]), "--out", str(out), "--no-plots", "--threads", "1"]
     assert main([*argv, "--set", "aghili.anchor_source=first-observation"]) == 0
     err = capsys.readouterr().err
-    assert "trimmed 10 x /imu" in err and "/wheel/odometry not taken as truth" in err
+    assert re.search(r"trimmed \d+ x /imu", err) and "/wheel/odometry not taken as truth" in err
     table = (out / "table.md").read_text()
     for entry in ESTIMATORS:
         (row,) = [line for line in table.splitlines() if f"| {entry.name} |" in line]

@@ -79,9 +79,16 @@ def test_scan_folder_sequence(tmp_path):
     sequence = load_dataset(f"scans:{tmp_path}", 0, {"kiss.max_num_threads": "1"})
     items = list(sequence.measurements())
     assert [m.t for m in items] == sorted(m.t for m in items)
-    assert sum(isinstance(m, PointCloud) for m in items) == 4
+    # the sequence starts at the first sweep's end (the first KISS-ICP pose): the first
+    # cloud goes through the front end but is not emitted, and the first odometry
+    # increment starts at the initial state
+    start = sequence.initial_state.t
+    assert 5.09 < start <= 5.1  # a 0.1 s sweep stamped 5.0
+    assert items[0].t >= start
+    assert sum(isinstance(m, PointCloud) for m in items) == 3
     odometry = [m for m in items if isinstance(m, Odometry)]
     assert len(odometry) == 3 and all(m.relative_pose.shape == (6,) for m in odometry)
+    assert odometry[0].t - odometry[0].dt == pytest.approx(start, abs=1e-9)
     # truth: 0.15 m per frame along +x; KISS-ICP starts from standstill in a corridor and
     # lags over the first frames, so only the direction is checked here
     forward = np.array([m.relative_pose[3] for m in odometry])

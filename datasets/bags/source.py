@@ -22,8 +22,11 @@ narrow it; topics not read (wheel odometry, an unnamed pose topic) play no part.
 dropped message is counted in ``metadata["warnings"]`` (``trimmed N x TOPIC at t=..: before
 the start of the common time base t=.. (first stamp on /points)``, once the stream has
 run); the interval and each stream's span are ``metadata["time_base"]``; the initial state
-is at the interval's start. The front end's odometry and corners of the last kept cloud
-are stamped at its sweep end, which the lidar's span includes.
+is at the interval's start. With deskewing lidar odometry the interval starts where the
+first kept sweep ends, at the front end's first pose (``start_at_first_pose``): the
+estimators' first odometry increment starts there, and the sweep itself is read but not
+emitted. The front end's odometry and corners of the last kept cloud are stamped at its
+sweep end, which the lidar's span includes.
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ from datasets.bags.reader import (
     open_bag,
     read_ground_truth,
     read_stream,
+    start_at_first_pose,
     topic_spans,
     topic_types,
 )
@@ -284,6 +288,11 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     if topics.ground_truth:
         spans[topics.ground_truth] = (float(gt[0][0]), float(gt[0][-1]))
     time_base = common_time_base(path, spans)  # module docstring: one time base
+    if time_base is not None and settings.odometry and settings.kiss.deskew:
+        with open_bag(path) as reader:
+            time_base = start_at_first_pose(
+                reader, path, time_base, topics.lidar, settings.point_time_unit
+            )
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
     ground_truth = _ground_truth(*gt, truth)
@@ -329,6 +338,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             front_end,
             settings.point_clouds,
             settings.max_frames,
+            emit_from_s=time_base.start_s if time_base else None,
         )
         resolved.update(front_end.resolved())
         reobservation.update(front_end.tracker.stats.summary())

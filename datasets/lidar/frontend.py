@@ -207,9 +207,16 @@ def _select(corners: Corners, keep: np.ndarray) -> Corners:
 
 
 def with_front_end(
-    measurements, front_end: LidarFrontEnd, emit_clouds: bool = True, max_frames: int | None = None
+    measurements,
+    front_end: LidarFrontEnd,
+    emit_clouds: bool = True,
+    max_frames: int | None = None,
+    emit_from_s: float | None = None,
 ):
     """Interleave the front end's odometry and corner scans into a stamp-ordered stream.
+
+    Clouds stamped before ``emit_from_s`` (the sequence's start, when its first sweep began
+    before it) go through the front end but are not emitted themselves.
 
     A frame's outputs are stamped at or after its cloud's stamp, and every later input is
     stamped at or after that too, so anything queued up to the current input's stamp can be
@@ -228,7 +235,7 @@ def with_front_end(
                 break
             frame = front_end.frame(index, measurement)
             index += 1
-            if emit_clouds:
+            if emit_clouds and (emit_from_s is None or measurement.t >= emit_from_s):
                 heapq.heappush(queue, (measurement.t, next(order), measurement))
             if frame.odometry is not None:
                 heapq.heappush(queue, (frame.t, next(order), frame.odometry))

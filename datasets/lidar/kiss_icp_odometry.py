@@ -88,6 +88,15 @@ def normalized_point_times(point_times: np.ndarray | None) -> np.ndarray:
     return (np.asarray(point_times, dtype=np.float64) - low) / (high - low)
 
 
+def pose_time(stamp_s: float, point_times: np.ndarray | None, deskew: bool = True) -> float:
+    """Time [s] of the pose KISS-ICP gives a cloud stamped ``stamp_s``: its latest point's
+    when the cloud is deskewed (per-point times that differ), else the stamp."""
+    if not deskew or point_times is None or len(point_times) == 0:
+        return float(stamp_s)
+    high = float(np.max(point_times))
+    return float(stamp_s) + high if high > float(np.min(point_times)) else float(stamp_s)
+
+
 @dataclass(frozen=True)
 class RegisteredFrame:
     """One frame after KISS-ICP.
@@ -167,7 +176,7 @@ class KissIcpOdometry:
         timestamps = (
             normalized_point_times(cloud.point_times) if self.settings.deskew else np.zeros(0)
         )
-        t = cloud.t + (float(np.max(cloud.point_times)) if timestamps.size else 0.0)
+        t = pose_time(cloud.t, cloud.point_times, self.settings.deskew)
         frame, _ = self._icp.register_frame(
             np.ascontiguousarray(cloud.points, dtype=np.float64), timestamps
         )
