@@ -7,6 +7,11 @@ cells are the workbench's own (``workbench.results.consistency``: per-step NEES 
 runs, the map as one joint NEES per run, the verdict rule of ``workbench.metrics.verdicts``).
 A suite cannot do this yet: a suite's recording is one file whatever ``--runs`` says.
 
+Each seed also prints the front end against the truth (``front_end_against_truth``): KISS-ICP's
+forward error accumulated over the first frames against its stated per-frame sigma, its
+per-frame NEES, and the corners' error against their stated covariance. These are the inputs
+every estimator shares, so they say what the cells can be expected to read.
+
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_lidar_bag_consistency.py [--runs 10]
     [--duration 8] [--estimator NAME ...]
 """
@@ -18,8 +23,12 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from datasets.bags.source import BagOptions, bag_sequence
-from datasets.lidar.corner_truth import with_true_corner_ids
+from datasets.lidar.corner_truth import interpolate_poses, with_true_corner_ids
+from datasets.measurements import LandmarkScan, Odometry
+from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
 from datasets.synthetic_lidar import write_lidar_bag
 from workbench.results.consistency import consistency_cells, run_consistency
 from workbench.runner import RunRequest, execute
@@ -35,6 +44,54 @@ ESTIMATORS = (
 )
 # no surveyed corners in a bag: Aghili's anchors from their first sighting (as the paper suite)
 OVERRIDES = {"aghili": (("anchor_source", "first-observation"),)}
+
+
+def front_end_against_truth(sequence) -> str:
+    """One line: KISS-ICP's odometry and the corners against the named truth (the corners
+    matched by their true ids, ``GroundTruth.scan_ids``)."""
+    truth = sequence.ground_truth
+    measurements = list(sequence.measurements())
+
+    def pose_at(t: float) -> tuple[np.ndarray, np.ndarray]:
+        positions, quats = interpolate_poses(truth.pose, np.array([t]))
+        return matrix_from_quat_wxyz(quats[0]), positions[0]
+
+    forward, sigma, odometry_nees = [], [], []
+    for item in (m for m in measurements if isinstance(m, Odometry)):
+        (r0, p0), (r1, p1) = pose_at(item.t - item.dt), pose_at(item.t)
+        true_rotation, true_translation = r0.T @ r1, r0.T @ (p1 - p0)
+        error = np.concatenate(
+            [
+                so3_log(true_rotation.T @ so3_exp(item.relative_pose[:3])),
+                item.relative_pose[3:] - true_translation,
+            ]
+        )
+        forward.append(error[3])
+        sigma.append(np.sqrt(item.covariance[3, 3]))
+        odometry_nees.append(error @ np.linalg.solve(item.covariance, error) / 6)
+    cumulative = np.cumsum(forward)
+    stated = np.sqrt(np.cumsum(np.square(sigma)))
+    positions = dict(zip(truth.landmarks.ids.tolist(), truth.landmarks.positions, strict=True))
+    scans = [m for m in measurements if isinstance(m, LandmarkScan)]
+    errors, corner_nees = [], []
+    for scan, (_, ids) in zip(scans, truth.scan_ids, strict=True):
+        rotation, position = pose_at(scan.t)
+        for point, covariance, true_id in zip(scan.points, scan.covariances, ids, strict=True):
+            if int(true_id) in positions:
+                error = point - rotation.T @ (positions[int(true_id)] - position)
+                errors.append(error)
+                corner_nees.append(error[:2] @ np.linalg.solve(covariance[:2, :2], error[:2]) / 2)
+    errors = 100 * np.array(errors)
+    late = slice(20, None)
+    return (
+        f"KISS-ICP forward error after 10 / 40 frames {100 * cumulative[9]:+.0f} / "
+        f"{100 * cumulative[39]:+.0f} cm (stated sigma {100 * stated[9]:.0f} / "
+        f"{100 * stated[39]:.0f}), per-frame NEES/dof frames 1-20 "
+        f"{np.mean(odometry_nees[:20]):.2f}, later {np.mean(odometry_nees[late]):.2f}; corners "
+        f"(body x, y) error {errors[:, 0].mean():+.1f} +- {errors[:, 0].std():.1f}, "
+        f"{errors[:, 1].mean():+.1f} +- {errors[:, 1].std():.1f} cm, z {np.abs(errors[:, 2]).max():.1f} "
+        f"cm at most, horizontal NEES/dof {np.mean(corner_nees):.2f}"
+    )
 
 
 def main() -> None:
@@ -59,6 +116,7 @@ def main() -> None:
             for _ in sequence.measurements():  # the front end runs once (cached)
                 pass
             sequence = with_true_corner_ids(sequence, source.front_end)
+            print(f"seed {seed}: {front_end_against_truth(sequence)}", flush=True)
             for name in names:
                 request = RunRequest(name, dataset, seed, overrides=OVERRIDES.get(name, ()))
                 try:
