@@ -203,3 +203,54 @@ def test_three_dimensional_measurements() -> None:
     )
     assert list(result.assignments) == [4, 1, 0]
     assert result.dof == 9
+
+
+class _FixedPredictor:
+    """Independent landmarks at ``predicted`` (m, 2), each with covariance ``sigma^2 I``."""
+
+    def __init__(self, predicted: np.ndarray, sigma: float) -> None:
+        self.predicted = np.asarray(predicted, dtype=float)
+        self.sigma = sigma
+
+    def individual(self, indices):
+        indices = np.asarray(indices, dtype=int)
+        return self.predicted[indices], np.repeat(
+            (self.sigma**2 * np.eye(2))[None], len(indices), axis=0
+        )
+
+    def joint(self, indices):
+        indices = np.asarray(indices, dtype=int)
+        return self.predicted[indices], self.sigma**2 * np.eye(2 * len(indices))
+
+
+def test_a_sighting_between_the_gates_pairs_only_by_mutual_exclusion() -> None:
+    """Outside every association gate (0.99) but inside exactly one landmark's new-landmark
+    gate (0.9999), with no rival sighting and the landmark not yet matched: matched. Two
+    landmarks in reach, a rival sighting, or a landmark already matched: ambiguous."""
+    from datasets.estimate import AssociationDecision as Decision
+    from datasets.estimator_options import AssociationOptions
+    from filters.association import AssociationPolicy
+
+    policy = AssociationPolicy(AssociationOptions(association="jcbb"), 2)
+    # D^2 = 12 from its landmark: between chi2_2(0.99) = 9.2 and chi2_2(0.9999) = 18.4
+    assert chi2_gate(2, 0.99) < 12.0 < chi2_gate(2, 0.9999)
+    sigma, offset = 0.1, 0.1 * np.sqrt(12.0 / 2.0)  # noise 0.1 / sqrt(2) each, sum sigma^2
+    noise = _scan_cov(1, sigma / np.sqrt(2.0))[0]
+    predictor_sigma = sigma / np.sqrt(2.0)
+
+    def decide(landmarks, sightings):
+        sightings = np.asarray(sightings, dtype=float)
+        covs = np.repeat(noise[None], len(sightings), axis=0)
+        result = policy.by_geometry(
+            sightings, covs, len(landmarks), _FixedPredictor(landmarks, predictor_sigma)
+        )
+        return list(result.decisions), list(result.candidates)
+
+    lone = decide([[0.0, 0.0], [5.0, 0.0]], [[offset, offset]])
+    assert lone == ([Decision.MATCHED], [0])
+    two_in_reach = decide([[0.0, 0.0], [2 * offset, 2 * offset]], [[offset, offset]])
+    assert two_in_reach[0] == [Decision.AMBIGUOUS]
+    rivals = decide([[0.0, 0.0], [5.0, 0.0]], [[offset, offset], [-offset, -offset]])
+    assert rivals[0] == [Decision.AMBIGUOUS, Decision.AMBIGUOUS]
+    already = decide([[0.0, 0.0], [5.0, 0.0]], [[0.0, 0.01], [offset, offset]])
+    assert already == ([Decision.MATCHED, Decision.AMBIGUOUS], [0, -1])

@@ -170,6 +170,39 @@ class ScanAssociation:
         )
 
 
+def _exclusive_wide_pairs(
+    distances: np.ndarray, wide_gate: float, reasons: list[str], candidates: np.ndarray
+) -> list[tuple[int, int]]:
+    """Sightings left between the gates that pair by mutual exclusion: sighting j, outside
+    every candidate's association gate, has exactly one candidate i inside the new-landmark
+    gate, no other sighting of the scan has i inside that gate, and i is not matched yet.
+
+    Why: a true sighting falls outside its own landmark's association gate with the gate's
+    complement probability (1 % at 0.99), and left there it is neither used nor mapped.
+    On ``sim:guerreiro-loop --data ids=false`` (sensor-based, seed 0) that was 155 of 19627
+    sightings, all of them true, which capped the recall at 0.989. With one landmark only in
+    reach and no rival sighting, the pairing is what the new-landmark gate already assumes
+    when it refuses to start a landmark there.
+
+    A sighting JCBB left out although it was inside some association gate is not paired
+    here: the joint test rejected it.
+
+    Args: distances (k, m) individual D^2; wide_gate the new-landmark gate; reasons (k,)
+    and candidates (k,) as decided so far. Returns (j, i) pairs."""
+    inside = distances < wide_gate
+    claimed = {int(i) for i in candidates if i >= 0}
+    pairs = []
+    for j, reason in enumerate(reasons):
+        if reason != Reason.BETWEEN_GATES.value:
+            continue
+        (reach,) = np.nonzero(inside[j])
+        if reach.size != 1 or int(reach[0]) in claimed:
+            continue
+        if np.count_nonzero(inside[:, reach[0]]) == 1:
+            pairs.append((j, int(reach[0])))
+    return pairs
+
+
 def _empty(mode: Mode, measured_cov: np.ndarray) -> ScanAssociation:
     """Every sighting new, with its own noise."""
     noise = np.array(measured_cov, dtype=float)
@@ -315,6 +348,15 @@ class AssociationPolicy:
                     nis[j] = search.individual_nis[j]
                 elif search.candidate_counts[j] > 0:
                     decisions[j], reasons[j] = Decision.AMBIGUOUS, Reason.NOT_IN_HYPOTHESIS.value
+        for j, i in _exclusive_wide_pairs(
+            distances, chi2_gate(d, self.options.new_landmark_probability), reasons, candidates
+        ):
+            decisions[j], reasons[j], candidates[j], nis[j] = (
+                Decision.MATCHED,
+                "",
+                i,
+                distances[j, i],
+            )
         return ScanAssociation(
             mode,
             tuple(decisions),

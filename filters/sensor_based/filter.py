@@ -78,6 +78,7 @@ from filters.sensor_based.config import (
     PAPER_RANGE_SIGMA_M,
     PAPER_RANGE_SWITCH_M,
     SensorBasedConfig,
+    landmark_disturbance,
 )
 from filters.sensor_based.directions import direction_covariance, match_direction
 from filters.sensor_based.dynamics import ProcessNoise, propagate_in_place, rate_dimension
@@ -136,7 +137,7 @@ class SensorBasedSlam:
         self.noise = ProcessNoise(
             velocity_m_s=velocity_walk,
             gyro_bias_rad_s=config.sigma_gyro_bias_rad_s,
-            landmark_m=config.sigma_landmark_m,
+            landmark_m=landmark_disturbance(config),
             direction=config.sigma_direction,
             gyro_noise_density=float(density),
         )
