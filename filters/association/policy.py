@@ -15,7 +15,9 @@ some sighting at ``gate_probability`` enter JCBB with their *joint* predicted co
 a sighting left unpaired starts a new landmark only when it lies outside every candidate's
 gate at the looser ``new_landmark_probability`` (at the association gate, 1 % of true
 sightings fall outside their own landmark's gate and would otherwise become duplicates);
-between the two gates it is *ambiguous*: neither used nor mapped.
+between the two gates it pairs by mutual exclusion when exactly one landmark is in reach and
+no other sighting reaches it (``_exclusive_wide_pairs``), and is otherwise *ambiguous*:
+neither used nor mapped.
 
 With ids: a sighting pairs with the candidate created from the same id, and the same id
 twice in one scan keeps its first sighting. A known id whose sighting falls outside the
