@@ -29,9 +29,9 @@ and segment merges, never over points):
    (``corner_covariance``), plus an isotropic ``model_sigma_m`` floor for errors the point
    model leaves out. The floor was set where detections on the synthetic corridor bag
    scattered 1.8 cm RMS about the true corners and the point model alone predicted 1.2 cm.
-   Since the bag's sequences start at the first lidar pose, the same bag reads 1.4 cm RMS
-   (body x +0.6 +- 1.1 cm, y +0.1 +- 0.5 cm, horizontal NEES 0.34 per dof;
-   ``benchmarks/bench_lidar_bag_consistency.py``). On the real KITTI clip the corners'
+   The same bag now reads 1.4 cm RMS (body x +0.6 +- 1.1 cm, y +0.1 +- 0.5 cm, horizontal
+   NEES 0.34 per dof; ``benchmarks/bench_lidar_bag_consistency.py``); which later change
+   of the front end made the difference was not traced. On the real KITTI clip the corners'
    re-observation NIS is 0.76 per dof with the floor, so it stays. 3-D corners take the slab
    height.
 """
