@@ -170,7 +170,8 @@ def landmark_disturbance(config: SensorBasedConfig) -> float:
     paper's section V value for ``tuning=paper``.
 
     Why 0 by default: the landmarks of every dataset here are static, and the gyro noise
-    already reaches them through G (eq. (4)), so sigma_p is a disturbance no data states. The
+    already reaches them through G (the ``M(f) n`` term of eq. (2), added to first order in
+    ``filters.sensor_based.dynamics``), so sigma_p is a disturbance no data states. The
     paper's 0.05 inflates each landmark by 0.16 m over 10 s unseen. On
     ``sim:guerreiro-loop --data ids=false`` (seed 0) it held the landmark NIS at 0.64 per
     dof and the association at 0.987 precision; with 0 they read 0.94 and 1.0. On UTIAS
