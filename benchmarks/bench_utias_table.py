@@ -1,0 +1,104 @@
+"""Issue 14's UTIAS table: every planar estimator on every robot of MRCLAM dataset 1
+(``../shared/data/utias-mrclam1``), with the scans' ids and without, one Markdown row each.
+
+Columns: SE(2)-aligned and raw ATE of the causal estimate, the smoothed ATE (smoothers),
+pose NEES per run (3 dof; causal and smoothed), association precision / recall, the rejected
+and inflated fractions of sightings, the final map size and NIS per dof: the run's own
+``metrics.json`` values (``workbench.metrics.summary.compute_metrics``), nothing recomputed.
+The last lines give each estimator's ATE over the batch smoother's smoothed ATE with ids, per
+robot (the issue asks ekf-slam and sensor-based for 2x or less).
+
+Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_utias_table.py [--robot 1 ...]
+    [--estimator NAME ...] [--ids yes|no|both] [--duration SECONDS]
+The whole table (6 estimators x 5 robots x 2) takes about an hour on one core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from workbench.metrics.summary import compute_metrics
+from workbench.registry import load_dataset
+from workbench.runner import RunRequest, execute
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"
+ESTIMATORS = (
+    "dead-reckoning",
+    "ekf-slam",
+    "sensor-based",
+    "smoother-isam2",
+    "smoother-fixed-lag",
+    "smoother-batch",
+)
+COLUMNS = (
+    ("ate_rmse_m", "ATE SE(2) [m]"),
+    ("ate_rmse_raw_m", "ATE raw [m]"),
+    ("ate_rmse_smoothed_m", "ATE smoothed [m]"),
+    ("nees_pose_mean", "NEES"),
+    ("nees_pose_mean_smoothed", "NEES smoothed"),
+    ("association_precision", "assoc. P"),
+    ("association_recall", "assoc. R"),
+    ("association_rejected_fraction", "rejected"),
+    ("association_inflated_fraction", "inflated"),
+    ("landmarks_in_map", "landmarks"),
+    ("nis_per_dof", "NIS/dof"),
+)
+
+
+def cell(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", type=int, action="append", default=[])
+    parser.add_argument("--estimator", action="append", default=[])
+    parser.add_argument("--ids", choices=("yes", "no", "both"), default="both")
+    parser.add_argument("--duration", type=float, default=None, help="seconds of each run")
+    args = parser.parse_args()
+    if not DATA.is_dir():
+        raise SystemExit(f"{DATA}: UTIAS MRCLAM dataset 1 not found")
+    robots = args.robot or [1, 2, 3, 4, 5]
+    names = args.estimator or list(ESTIMATORS)
+    id_modes = {"yes": [True], "no": [False], "both": [True, False]}[args.ids]
+    print("| estimator | robot | ids | " + " | ".join(title for _, title in COLUMNS) + " |")
+    print("|---|---|---|" + "---|" * len(COLUMNS))
+    ate: dict[tuple[str, int, bool], float | None] = {}
+    started = time.perf_counter()
+    for ids in id_modes:
+        for robot in robots:
+            options = {"ids": str(ids).lower()}
+            if args.duration:
+                options["duration_s"] = str(args.duration)
+            dataset = f"utias:{DATA}#robot{robot}"
+            sequence = load_dataset(dataset, 0, options)
+            for name in names:
+                try:
+                    result = execute(RunRequest(name, dataset), sequence=sequence)
+                except Exception as error:  # a benchmark reports failures, it does not stop
+                    print(f"| {name} | {robot} | {'yes' if ids else 'no'} | failed: {error} |")
+                    continue
+                metrics = compute_metrics(result.estimate, sequence)
+                key = "ate_rmse_smoothed_m" if name == "smoother-batch" else "ate_rmse_m"
+                ate[(name, robot, ids)] = metrics.get(key)
+                values = " | ".join(cell(metrics.get(column)) for column, _ in COLUMNS)
+                print(f"| {name} | {robot} | {'yes' if ids else 'no'} | {values} |", flush=True)
+    print(f"\n{time.perf_counter() - started:.0f} s")
+    for name in names:
+        ratios = []
+        for robot in robots:
+            own, batch = ate.get((name, robot, True)), ate.get(("smoother-batch", robot, True))
+            ratios.append("-" if not own or not batch else f"{own / batch:.2f}")
+        print(
+            f"{name}: ATE over the batch smoother's smoothed ATE (ids), robots {robots}: {ratios}"
+        )
+
+
+if __name__ == "__main__":
+    main()
