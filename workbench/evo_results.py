@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import zipfile
 from pathlib import Path
 
@@ -22,7 +21,7 @@ import numpy as np
 from datasets.errors import InputError
 from datasets.trajectory import Trajectory
 from datasets.trajectory_io import write_atomic
-from workbench.metrics.ate import ate_errors, paired_trajectories
+from workbench.metrics.ate import ate_errors, error_statistics, paired_trajectories
 from workbench.metrics.rpe import rpe_errors
 
 MIN_POSES = 3
@@ -32,15 +31,7 @@ MIN_POSES = 3
 def evo_statistics(errors: np.ndarray) -> dict[str, float]:
     """The statistics evo stores in ``stats.json`` (its ``StatisticsType`` names)."""
     errors = np.asarray(errors, dtype=float)
-    return {
-        "rmse": math.sqrt(float(np.mean(errors**2))),
-        "mean": float(np.mean(errors)),
-        "median": float(np.median(errors)),
-        "std": float(np.std(errors)),
-        "min": float(np.min(errors)),
-        "max": float(np.max(errors)),
-        "sse": float(np.sum(errors**2)),
-    }
+    return {**error_statistics(errors), "sse": float(np.sum(errors**2))}
 
 
 def result_zip(info: dict[str, str], errors: np.ndarray, timestamps: np.ndarray) -> bytes:
