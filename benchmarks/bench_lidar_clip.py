@@ -18,18 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from datasets.rotations import matrix_from_quat_wxyz, so3_log
+from workbench.commands.bag import choose_estimators
 from workbench.registry import load_dataset
 from workbench.runner import RunRequest, execute
 
 CLIP = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti-hdl64-clip"
-LIDAR_ONLY = (
-    "dead-reckoning",
-    "ekf-slam",
-    "sensor-based",
-    "smoother-isam2",
-    "smoother-fixed-lag",
-    "smoother-batch",
-)
 
 
 def deviation_from(reference, pose) -> tuple[float, float, float]:
@@ -110,7 +103,9 @@ def main() -> None:
     front_seconds = time.perf_counter() - started
     reference = None
     rows = []
-    for name in LIDAR_ONLY:
+    # every registered estimator the clip allows (as `workbench bag` chooses), dead-reckoning
+    # first: its pose is the reference
+    for name in choose_estimators(None, sequence):
         result = execute(RunRequest(name, f"scans:{CLIP}"), sequence=sequence)
         history = (
             result.estimate.causal if result.estimate.causal.pose else result.estimate.smoothed

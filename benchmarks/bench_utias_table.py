@@ -19,19 +19,12 @@ import argparse
 import time
 from pathlib import Path
 
+from workbench.commands.bag import choose_estimators
 from workbench.metrics.summary import compute_metrics
 from workbench.registry import load_dataset
 from workbench.runner import RunRequest, execute
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"
-ESTIMATORS = (
-    "dead-reckoning",
-    "ekf-slam",
-    "sensor-based",
-    "smoother-isam2",
-    "smoother-fixed-lag",
-    "smoother-batch",
-)
 COLUMNS = (
     ("ate_rmse_m", "ATE SE(2) [m]"),
     ("ate_rmse_raw_m", "ATE raw [m]"),
@@ -65,7 +58,6 @@ def main() -> None:
     if not DATA.is_dir():
         raise SystemExit(f"{DATA}: UTIAS MRCLAM dataset 1 not found")
     robots = args.robot or [1, 2, 3, 4, 5]
-    names = args.estimator or list(ESTIMATORS)
     id_modes = {"yes": [True], "no": [False], "both": [True, False]}[args.ids]
     print("| estimator | robot | ids | " + " | ".join(title for _, title in COLUMNS) + " |")
     print("|---|---|---|" + "---|" * len(COLUMNS))
@@ -78,7 +70,8 @@ def main() -> None:
                 options["duration_s"] = str(args.duration)
             dataset = f"utias:{DATA}#robot{robot}"
             sequence = load_dataset(dataset, 0, options)
-            for name in names:
+            # the requested ones, or every registered estimator UTIAS allows
+            for name in choose_estimators(args.estimator, sequence):
                 try:
                     result = execute(RunRequest(name, dataset), sequence=sequence)
                 except Exception as error:  # a benchmark reports failures, it does not stop
@@ -90,7 +83,7 @@ def main() -> None:
                 values = " | ".join(cell(metrics.get(column)) for column, _ in COLUMNS)
                 print(f"| {name} | {robot} | {'yes' if ids else 'no'} | {values} |", flush=True)
     print(f"\n{time.perf_counter() - started:.0f} s")
-    for name in names:
+    for name in dict.fromkeys(name for name, _, _ in ate):
         ratios = []
         for robot in robots:
             own, batch = ate.get((name, robot, True)), ate.get(("smoother-batch", robot, True))
