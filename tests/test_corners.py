@@ -6,7 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets.lidar.corners import CornerConfig, extract_corners, split_segments
+from datasets.lidar.corners import (
+    CornerConfig,
+    azimuth_scan_indices,
+    extract_corners,
+    split_segments,
+)
 from datasets.synthetic_lidar.lidar import cast_rays
 from datasets.synthetic_lidar.world import Polygon, World
 
@@ -48,6 +53,25 @@ def _scan(
         )
         points.append(distance[:, None] * reported)
     return np.concatenate(points)
+
+
+def test_azimuth_scan_takes_the_most_horizontal_point_then_the_bin_centre():
+    """One point per bin, nearest the slab centre; equally near ones (KITTI's z is quantised
+    to 1 mm) go to the one nearest the bin's centre azimuth, whatever the file order."""
+    config = CornerConfig(azimuth_resolution_deg=1.0)
+    bin_centre_deg = 10.5 - 180.0  # bins count from azimuth -180 deg
+    rows = []
+    for degrees, z in [(0.1, 0.05), (0.5, 0.05), (0.9, 0.05), (0.3, 0.01)]:  # bin 10 of 360
+        azimuth = np.deg2rad(bin_centre_deg - 0.5 + degrees)
+        rows.append([5.0 * np.cos(azimuth), 5.0 * np.sin(azimuth), z])
+    for degrees, z in [(0.2, -0.03), (0.5, 0.03), (0.7, 0.03)]:  # bin 11: a tie at +-0.03
+        azimuth = np.deg2rad(bin_centre_deg + 0.5 + degrees)
+        rows.append([5.0 * np.cos(azimuth), 5.0 * np.sin(azimuth), z])
+    rows.append([0.0, 0.0, 5.0])  # outside the slab
+    points = np.array(rows)
+    for order in (np.arange(len(points)), np.arange(len(points))[::-1]):
+        chosen = order[azimuth_scan_indices(points[order], config)]
+        assert chosen.tolist() == [3, 5]
 
 
 def test_room_and_box_corners_exact_without_noise():

@@ -128,23 +128,37 @@ class Corners:
 
 def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> np.ndarray:
     """Indices of the slab points that make the azimuth scan (steps 1-2): one point per
-    azimuth bin (the one nearest the slab centre), ordered by azimuth."""
+    azimuth bin (the one nearest the slab centre; among equally near ones, the one nearest
+    the bin's centre azimuth), ordered by azimuth."""
     offset = np.abs(points[:, 2] - config.slab_height_m)
     keep = np.flatnonzero(offset <= config.slab_half_thickness_m)  # cheap test first
-    slab = points[keep]
-    rng = np.hypot(slab[:, 0], slab[:, 1])
-    inside = (rng >= config.min_range_m) & (rng <= config.max_range_m)
-    keep, slab, offset = keep[inside], slab[inside], offset[keep[inside]]
-    bins = np.floor(
-        (np.arctan2(slab[:, 1], slab[:, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)
-    ).astype(np.int64)
-    # per bin, the point nearest the slab centre (the most horizontal ring): unlike the
-    # nearest point, it does not bias ranges short when several rings share a bin
-    # one float sort on bin + fraction (offset / thickness < 1) instead of a lexsort: 8x faster
-    order = np.argsort(bins + offset / (config.slab_half_thickness_m * (1.0 + 1e-9) + 1e-12))
-    first = np.ones(order.size, dtype=bool)
-    first[1:] = bins[order][1:] != bins[order][:-1]
-    return keep[order[first]]
+    x, y = points[keep, 0], points[keep, 1]
+    squared_range = x * x + y * y
+    inside = (squared_range >= config.min_range_m**2) & (squared_range <= config.max_range_m**2)
+    keep, x, y = keep[inside], x[inside], y[inside]
+    offset = offset[keep]
+    resolution = np.deg2rad(config.azimuth_resolution_deg)
+    azimuth = (np.arctan2(y, x) + np.pi) / resolution  # in bins
+    bins = np.floor(azimuth).astype(np.int64)
+    # Per bin, the point nearest the slab centre (the most horizontal ring): unlike the
+    # nearest point, it does not bias ranges short when several rings share a bin. Ties
+    # are common (KITTI's z is quantised to 1 mm: a quarter of the bins) and go to the point
+    # nearest the bin's centre azimuth, which keeps the scan's azimuth sampling regular
+    # and does not depend on the order of the points in the file. The tie-break matters:
+    # on the real KITTI clip the corner re-observation NIS/dof reads 0.68-1.22 across
+    # six tie-breaks (first or last in the file, nearest or farthest, this one 0.91; an
+    # unstable sort gave 0.76), so a difference of that size there is not a finding.
+    # Per-bin minima and no sort of the slab: O(n), 2x faster on KITTI scans.
+    total_bins = int(np.ceil(2.0 * np.pi / resolution)) + 1
+    nearest = np.full(total_bins, np.inf)
+    np.minimum.at(nearest, bins, offset)
+    winners = np.flatnonzero(offset == nearest[bins])
+    from_centre = np.abs(azimuth[winners] - bins[winners] - 0.5)
+    most_central = np.full(total_bins, np.inf)
+    np.minimum.at(most_central, bins[winners], from_centre)
+    winners = winners[from_centre == most_central[bins[winners]]]
+    _, first = np.unique(bins[winners], return_index=True)  # sorted bins; exact ties: first
+    return keep[winners[first]]
 
 
 def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
