@@ -14,6 +14,7 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 
+from datasets.bags.pointcloud2 import encode_pointcloud2
 from datasets.bags.reader import ReadReport, ReadSettings, read_stream
 from datasets.bags.source import load_bag
 from datasets.errors import InputError
@@ -46,31 +47,10 @@ def _imu(t: float, value: float = 0.0):
 
 
 def _cloud(t: float, points: np.ndarray, names=("x", "y", "z")):
-    dtype = np.dtype(
-        {
-            "names": list(names),
-            "formats": ["<f4"] * len(names),
-            "offsets": [4 * k for k in range(len(names))],
-            "itemsize": 4 * len(names),
-        }
-    )
-    records = np.zeros(len(points), dtype=dtype)
+    records = np.zeros(len(points), dtype=[(name, "<f4") for name in names])
     for k, name in enumerate(names):
         records[name] = points[:, k]
-    return T["sensor_msgs/msg/PointCloud2"](
-        header=_header(t),
-        height=1,
-        width=len(points),
-        fields=[
-            T["sensor_msgs/msg/PointField"](name=n, offset=4 * k, datatype=7, count=1)
-            for k, n in enumerate(names)
-        ],
-        is_bigendian=False,
-        point_step=dtype.itemsize,
-        row_step=dtype.itemsize * len(points),
-        data=np.frombuffer(records.tobytes(), dtype=np.uint8),
-        is_dense=False,
-    )
+    return encode_pointcloud2(TYPESTORE, _header(t), records, is_dense=False)
 
 
 def write_ros2(path: Path, messages: list[tuple[str, str, float, object]]) -> Path:

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from datasets.bags.pointcloud2 import encode_pointcloud2
 from datasets.measurements import LandmarkScan, Odometry, Sensor
 from datasets.rotations import matrix_from_quat_wxyz, so3_log
 from tests.test_lidar_only import CLIP, LIDAR_ONLY
@@ -64,20 +65,7 @@ def _pointcloud2(typestore, ros1: bool, points: np.ndarray, stamp_ns: int):
         if ros1
         else header_type(stamp=stamp, frame_id="velodyne")
     )
-    return types["sensor_msgs/msg/PointCloud2"](
-        header=header,
-        height=1,
-        width=len(points),
-        fields=[
-            types["sensor_msgs/msg/PointField"](name=name, offset=4 * k, datatype=7, count=1)
-            for k, name in enumerate(names)
-        ],
-        is_bigendian=False,
-        point_step=records.dtype.itemsize,
-        row_step=records.dtype.itemsize * len(points),
-        data=np.frombuffer(records.tobytes(), dtype=np.uint8),
-        is_dense=True,
-    )
+    return encode_pointcloud2(typestore, header, records, is_dense=True)
 
 
 def _write_bag(out: Path, ros1: bool, scans: list[np.ndarray]) -> Path:

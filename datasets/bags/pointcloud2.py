@@ -139,6 +139,45 @@ def decode_pointcloud2(
     )
 
 
+def encode_pointcloud2(typestore, header, records: np.ndarray, is_dense: bool):
+    """The inverse of ``decode_pointcloud2`` for writers (the synthetic bags, tests): a
+    ``sensor_msgs/msg/PointCloud2`` of ``typestore`` whose points are ``records``.
+
+    Args:
+        typestore: a rosbags typestore (ROS 1 or ROS 2). header: its ``std_msgs/msg/Header``.
+        records: a little-endian structured array, (n,) for an unorganized cloud (height 1)
+            or (rows, columns) for an organized one; every field of its dtype becomes a
+            ``PointField`` at its offset, and padding stays (point_step = itemsize).
+        is_dense: the message's flag (False when some points are invalid, e.g. NaN misses).
+    """
+    datatypes = {code: datatype for datatype, code in _NUMPY_TYPES.items()}
+    types = typestore.types
+    fields = []
+    for name in records.dtype.names:
+        field_type, offset = records.dtype.fields[name][:2]
+        if field_type.byteorder == ">" or field_type.str[1:] not in datatypes:
+            raise ValueError(
+                f"PointCloud2 field '{name}': no little-endian datatype for {field_type}"
+            )
+        fields.append(
+            types["sensor_msgs/msg/PointField"](
+                name=name, offset=offset, datatype=datatypes[field_type.str[1:]], count=1
+            )
+        )
+    rows, columns = (1, records.shape[0]) if records.ndim == 1 else records.shape
+    return types["sensor_msgs/msg/PointCloud2"](
+        header=header,
+        height=rows,
+        width=columns,
+        fields=fields,
+        is_bigendian=False,
+        point_step=records.dtype.itemsize,
+        row_step=records.dtype.itemsize * columns,
+        data=np.frombuffer(np.ascontiguousarray(records).tobytes(), dtype=np.uint8),
+        is_dense=is_dense,
+    )
+
+
 def relative_point_seconds(values: np.ndarray, stamp_s: float, time_unit: str) -> np.ndarray:
     """Per-point times as seconds relative to the header stamp (see the module docstring)."""
     integer = values.dtype.kind in "iu"

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from datasets.bags.pointcloud2 import encode_pointcloud2
 from datasets.errors import InputError
 from datasets.lidar.corner_truth import SIDECAR_FORMAT, sidecar_for
 from datasets.options import parse_options
@@ -56,9 +57,6 @@ WHEEL_TOPIC = "/wheel/odometry"
 WHEEL_SCALE_ERROR = 0.02  # wheel odometry over-reads distance by 2 %
 WHEEL_YAW_DRIFT_RAD_S = 0.01  # and its heading drifts by this rate [rad/s]
 WHEEL_NOISE_M, WHEEL_NOISE_RAD = 1e-3, 5e-4  # per-increment noise std
-
-# PointField datatype codes (sensor_msgs/PointField)
-_FLOAT32, _FLOAT64, _UINT16, _UINT32 = 7, 8, 4, 6
 
 
 class LidarBagOptions(BaseModel):
@@ -125,29 +123,23 @@ def _header(typestore, ros1: bool, t: float, frame: str):
     return header_type(stamp=_stamp(typestore, t), frame_id=frame)
 
 
-def _cloud_layout(time_field: str) -> tuple[np.dtype, list[tuple[str, int, int]]]:
-    """Structured dtype with padding, and its (name, offset, datatype) PointFields."""
-    fields = [
-        ("x", 0, _FLOAT32),
-        ("y", 4, _FLOAT32),
-        ("z", 8, _FLOAT32),
-        ("intensity", 16, _FLOAT32),
-        ("ring", 20, _UINT16),
-    ]
+def _cloud_layout(time_field: str) -> np.dtype:
+    """Structured dtype of one point, 32 bytes with padding (as drivers write them); its
+    fields become the message's PointFields."""
+    fields = [("x", 0, "<f4"), ("y", 4, "<f4"), ("z", 8, "<f4"), ("intensity", 16, "<f4")]
+    fields.append(("ring", 20, "<u2"))
     if time_field in ("time", "timestamp"):
-        fields.append((time_field, 24, _FLOAT64 if time_field == "timestamp" else _FLOAT32))
+        fields.append((time_field, 24, "<f8" if time_field == "timestamp" else "<f4"))
     elif time_field in ("t", "offset_time"):
-        fields.append((time_field, 24, _UINT32))
-    numpy_type = {_FLOAT32: "<f4", _FLOAT64: "<f8", _UINT16: "<u2", _UINT32: "<u4"}
-    dtype = np.dtype(
+        fields.append((time_field, 24, "<u4"))
+    return np.dtype(
         {
-            "names": [f[0] for f in fields],
-            "formats": [numpy_type[f[2]] for f in fields],
-            "offsets": [f[1] for f in fields],
+            "names": [name for name, _, _ in fields],
+            "formats": [numpy_type for _, _, numpy_type in fields],
+            "offsets": [offset for _, offset, _ in fields],
             "itemsize": 32,
         }
     )
-    return dtype, fields
 
 
 def _quat_yaw(yaw: float) -> tuple[float, float, float, float]:
@@ -330,7 +322,7 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
     rng = np.random.default_rng(seed)
     serialize = typestore.serialize_ros1 if ros1 else typestore.serialize_cdr
     types = typestore.types
-    dtype, layout = _cloud_layout(time_field)
+    dtype = _cloud_layout(time_field)
 
     # Written under a temporary name and renamed when complete: an interrupted run never
     # leaves a bag that looks whole.
@@ -390,23 +382,7 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
                     cloud[time_field] = EPOCH_S + stamp + offsets
                 elif time_field == "time":
                     cloud[time_field] = offsets
-                fields = [
-                    types["sensor_msgs/msg/PointField"](
-                        name=name, offset=offset, datatype=datatype, count=1
-                    )
-                    for name, offset, datatype in layout
-                ]
-                message = types["sensor_msgs/msg/PointCloud2"](
-                    header=header,
-                    height=cloud.shape[0],
-                    width=cloud.shape[1],
-                    fields=fields,
-                    is_bigendian=False,
-                    point_step=dtype.itemsize,
-                    row_step=dtype.itemsize * cloud.shape[1],
-                    data=np.frombuffer(cloud.tobytes(), dtype=np.uint8),
-                    is_dense=False,
-                )
+                message = encode_pointcloud2(typestore, header, cloud, is_dense=False)
             elif topic == IMU_TOPIC:
                 motion = path.sample(np.array([t]))
                 yaw = motion.yaw[0]
