@@ -205,6 +205,32 @@ def test_average_runs_flags_an_overconfident_estimator() -> None:
     assert average_runs(honest).inside_fraction > 0.85
 
 
+def test_cost_column_is_the_whole_run_not_the_median_step() -> None:
+    """A smoother's median step is an IMU sample; its cost is in keyframes and the finish.
+    The table's cost column is the run's wall clock (sim:aghili-rover, seed 3: batch
+    0.0187 ms median step, 67.4 s a run; ekf-slam 0.154 ms, 1.02 s)."""
+    rows = [
+        PairSummary(
+            "sim:x",
+            name,
+            name,
+            "ok",
+            2,
+            2,
+            None,
+            stats={
+                "time_per_step_ms_median": Stat(median_ms, 0.0, 2),
+                "time_total_s": Stat(total_s, 0.0, 2),
+            },
+        )
+        for name, median_ms, total_s in (("smoother", 0.0187, 67.4), ("filter", 0.154, 1.02))
+    ]
+    text = markdown_table(rows)
+    assert "time/run [s]" in text and "time/step" not in text
+    assert "| 67.4 ± 0 |" in text and "| 1.02 ± 0 |" in text
+    assert "0.0187" not in text
+
+
 def test_markdown_says_na_with_the_reason() -> None:
     rows = [
         PairSummary(
