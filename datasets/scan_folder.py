@@ -322,11 +322,16 @@ def scans_sequence(
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
     reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
 
-    # the sequence starts at the front end's first pose (the first sweep's end when it is
-    # deskewed), where the first odometry increment starts; datasets.bags.reader
-    # .start_at_first_pose says why
-    first = next(clouds(), None) if settings.odometry and settings.kiss.deskew else None
-    start = float(times[0]) if first is None else pose_time(first.t, first.point_times)
+    # the sequence starts at the front end's first pose (the first kept scan's; its sweep's
+    # end when it is deskewed), where the first odometry increment starts; datasets.bags
+    # .reader.start_at_first_pose says why. Read also without deskewing: an empty or
+    # out-of-order first file is skipped, and the start is then a later file's stamp.
+    first = next(clouds(), None) if settings.odometry else None
+    start = (
+        float(times[0])
+        if first is None
+        else pose_time(first.t, first.point_times, settings.kiss.deskew)
+    )
 
     def stream():
         yield from with_front_end(

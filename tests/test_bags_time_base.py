@@ -182,6 +182,37 @@ def _assert_every_estimator_runs(sequence, name: str) -> None:
     execute(RunRequest("aghili", name, overrides=FIRST_OBSERVATION), sequence=sequence)
 
 
+def test_without_deskewing_the_start_is_the_first_kept_cloud(tmp_path) -> None:
+    """``kiss.deskew=false``, and the bag's first cloud is empty: the front end's first pose
+    is the second cloud's stamp, and the sequence starts there, where the first odometry
+    increment starts (not at the empty cloud's stamp, one frame of motion earlier)."""
+    from tests.test_bags_bad_input import _box_points, _cloud, _imu, write_ros2
+
+    rng = np.random.default_rng(4)
+    messages = [
+        (
+            "/cloud",
+            "sensor_msgs/msg/PointCloud2",
+            t,
+            _cloud(t, _box_points(rng) if k else np.zeros((0, 3))),
+        )
+        for k, t in enumerate(1.0 + 0.1 * np.arange(6))
+    ]
+    messages += [
+        ("/imu", "sensor_msgs/msg/Imu", 0.9 + 0.01 * k, _imu(0.9 + 0.01 * k)) for k in range(70)
+    ]
+    messages.sort(key=lambda item: item[2])
+    bag = write_ros2(tmp_path / "empty_first_cloud", messages)
+    sequence = load_dataset(f"bag:{bag}", 0, {**DATA, "kiss.deskew": "false"})
+    measurements = list(sequence.measurements())
+    base = sequence.metadata["time_base"]
+    assert sequence.initial_state.t == base["start_s"] == pytest.approx(1.1)
+    assert base["start_by"] == "first kept cloud on /cloud, the first lidar pose"
+    first_odometry = next(m for m in measurements if isinstance(m, Odometry))
+    assert first_odometry.t - first_odometry.dt == pytest.approx(1.1, abs=1e-9)
+    assert min(m.t for m in measurements) >= base["start_s"]
+
+
 def test_leading_imu_and_wheel_odometry_without_truth(bags) -> None:
     name = f"bag:{bags['ros2']}"
     sequence = load_dataset(name, 0, DATA)

@@ -97,6 +97,24 @@ def test_scan_folder_sequence(tmp_path):
     assert any(isinstance(m, LandmarkScan) and m.count > 0 for m in items)
 
 
+def test_without_deskewing_the_start_is_the_first_kept_scan(tmp_path):
+    """An empty first file is skipped; without deskewing the sequence then starts at the
+    second file's stamp (KISS-ICP's first pose), not at the first file's: an initial state
+    before the first pose would put the whole run one frame of motion off."""
+    _write_pcd(tmp_path / "000000.pcd", np.zeros((0, 3)), np.zeros(0), binary=True)
+    for k, (points, times) in enumerate(_sweeps(3), start=1):
+        _write_pcd(tmp_path / f"{k:06d}.pcd", points, times, binary=True)
+    (tmp_path / "times.txt").write_text("\n".join(f"{5.0 + 0.1 * k:.3f}" for k in range(4)) + "\n")
+    options = {"kiss.max_num_threads": "1", "kiss.deskew": "false"}
+    sequence = load_dataset(f"scans:{tmp_path}", 0, options)
+    items = list(sequence.measurements())
+    assert sequence.initial_state.t == pytest.approx(5.1, abs=1e-12)
+    odometry = [m for m in items if isinstance(m, Odometry)]
+    assert len(odometry) == 2
+    assert odometry[0].t - odometry[0].dt == pytest.approx(sequence.initial_state.t, abs=1e-9)
+    assert [m.t for m in items if isinstance(m, PointCloud)] == pytest.approx([5.1, 5.2, 5.3])
+
+
 def test_bad_scans(tmp_path):
     (tmp_path / "000.bin").write_bytes(b"\0" * 20)
     with pytest.raises(

@@ -559,17 +559,26 @@ def topic_spans(
 
 
 def start_at_first_pose(
-    reader, path: Path, time_base: TimeBase, lidar_topic: str, time_unit: str = "auto"
+    reader,
+    path: Path,
+    time_base: TimeBase,
+    lidar_topic: str,
+    time_unit: str = "auto",
+    deskew: bool = True,
 ) -> TimeBase:
-    """``time_base`` starting where the first kept sweep ends: the time of the deskewing
-    front end's first pose (``datasets.lidar.kiss_icp_odometry``: a frame's pose is at its
-    latest point). The first kept sweep is the first decodable cloud stamped at or after the
-    common start. Lidar odometry says nothing about the motion during that sweep, so an
-    initial state at the sweep's stamp would hand the estimators a pose one sweep before
-    their first odometry increment starts: on the synthetic corridor bag (1.5 m/s, 0.1 s
-    sweeps) every odometry-driven estimator then carried a 0.15 m forward offset from the
-    first step on (ekf-slam's pose NEES about 11 per dof throughout). Clouds without
-    per-point times have their pose at their stamp, so the start does not move."""
+    """``time_base`` starting at the front end's first pose: where the first kept sweep ends
+    when it is deskewed (``datasets.lidar.kiss_icp_odometry``: a frame's pose is at its
+    latest point), else at the sweep's stamp. The first kept sweep is the first decodable,
+    non-empty cloud stamped at or after the common start.
+
+    Lidar odometry says nothing about the motion before that pose, so an initial state
+    earlier than it hands the estimators a pose that far before their first odometry
+    increment starts: on the synthetic corridor bag (1.5 m/s, 0.1 s sweeps) every
+    odometry-driven estimator carried a 0.15 m forward offset from the first step on
+    (ekf-slam's pose NEES about 11 per dof throughout) while the start was the sweep's
+    stamp. Without deskewing (or clouds without per-point times) the start is the first
+    kept cloud's stamp, which is later than the common start when another stream sets
+    that start or the first clouds are empty."""
     for topic, msgtype, stamp, message in iter_messages(reader, path, [lidar_topic]):
         if msgtype != POINTCLOUD2 or stamp < time_base.start_s:
             continue
@@ -579,15 +588,16 @@ def start_at_first_pose(
             continue
         if not len(cloud.points):
             continue
-        end = pose_time(stamp, cloud.point_times)
+        end = pose_time(stamp, cloud.point_times, deskew)
         if end == time_base.start_s and stamp == time_base.start_s:
             return time_base
         if end > time_base.end_s:
             break
+        where = "end of the first sweep" if end > stamp else "first kept cloud"
         return TimeBase(
             start_s=end,
             end_s=time_base.end_s,
-            start_by=f"end of the first sweep on {lidar_topic}, the first lidar pose",
+            start_by=f"{where} on {lidar_topic}, the first lidar pose",
             end_by=time_base.end_by,
             spans=time_base.spans,
             first_cloud_s=stamp,

@@ -22,10 +22,10 @@ narrow it; topics not read (wheel odometry, an unnamed pose topic) play no part.
 dropped message is counted in ``metadata["warnings"]`` (``trimmed N x TOPIC at t=..: before
 the start of the common time base t=.. (first stamp on /points)``, once the stream has
 run); the interval and each stream's span are ``metadata["time_base"]``; the initial state
-is at the interval's start. With deskewing lidar odometry the interval starts where the
-first kept sweep ends, at the front end's first pose (``start_at_first_pose``): the
-estimators' first odometry increment starts there, and the sweep itself is read but not
-emitted. The front end's odometry and corners of the last kept cloud are stamped at its
+is at the interval's start. With lidar odometry the interval starts at the front end's
+first pose (``start_at_first_pose``): where the first kept sweep ends when it is deskewed,
+else at that cloud's stamp. The estimators' first odometry increment starts there, and the
+sweep itself is read but not emitted. The front end's odometry and corners of the last kept cloud are stamped at its
 sweep end, which the lidar's span includes.
 """
 
@@ -288,10 +288,15 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     if topics.ground_truth:
         spans[topics.ground_truth] = (float(gt[0][0]), float(gt[0][-1]))
     time_base = common_time_base(path, spans)  # module docstring: one time base
-    if time_base is not None and settings.odometry and settings.kiss.deskew:
+    if time_base is not None and settings.odometry:
         with open_bag(path) as reader:
             time_base = start_at_first_pose(
-                reader, path, time_base, topics.lidar, settings.point_time_unit
+                reader,
+                path,
+                time_base,
+                topics.lidar,
+                settings.point_time_unit,
+                deskew=settings.kiss.deskew,
             )
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
