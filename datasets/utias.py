@@ -6,14 +6,18 @@ the robot and surveyed landmark positions. Any MRCLAM dataset folder works (file
 ``Barcodes.dat``, ``Landmark_Groundtruth.dat``, ``RobotN_{Odometry,Measurement,Groundtruth}.dat``).
 
 What the stream contains (time-ordered; at equal times motion first, then the scan):
+- the odometry rows are the commanded velocities, multiplied by a speed and a turn-rate
+  factor fitted at load against the robot's Vicon (``odometry_speed_scale`` and
+  ``odometry_turn_scale``, ``fit`` by default; dataset 1: 0.91-0.94 and 0.93-0.96, both
+  overstated on every robot; ``metadata['odometry_scales']``), then:
 - ``GyroSample(t, rate=[omega])`` for every odometry row (the rate input of gyro-driven
   estimators such as ``sensor-based``);
 - ``Odometry(t, velocity=[v, omega])`` for every odometry row; the sample at ``t`` is meant
   for the interval ending at ``t`` (the workbench's convention, as in dead reckoning);
   ``covariance`` is the per-sample white-noise covariance ``diag(sigma_v^2, sigma_omega^2)``
   (the integrated increment over ``dt`` then has covariance ``dt^2 * covariance``);
-- ``LandmarkScan`` of the sightings sharing one time: body-frame points
-  body-frame points by ``datasets.range_bearing`` (the unbiased converted measurement and
+- ``LandmarkScan`` of the sightings sharing one time: body-frame points by
+  ``datasets.range_bearing`` (the unbiased converted measurement and
   its covariance by default; ``landmark_conversion=first-order``: ``p = r (cos b, sin b)``
   with ``J diag(sr^2, sb^2) J^T``).
 
@@ -153,10 +157,17 @@ class UtiasOptions(BaseModel):
         ge=0,
         description="calibration: shift the odometry (and gyro) later by this [s] (the commanded velocity leads the motion by about 0.16 s)",
     )
-    odometry_speed_scale: float = Field(
-        1.0,
-        gt=0,
-        description="calibration: multiply the forward velocity (the commanded speed overstates the motion by several percent)",
+    odometry_speed_scale: float | Literal["fit"] = Field(
+        "fit",
+        description="calibration: multiply the forward velocity by this; 'fit': the factor that "
+        "best matches this robot's Vicon over the whole recording (datasets.odometry_calibration"
+        ".fit_scales); 1 keeps the commanded speed",
+    )
+    odometry_turn_scale: float | Literal["fit"] = Field(
+        "fit",
+        description="calibration: multiply the angular velocity by this; 'fit' as for the speed "
+        "(the commanded turn rate overstates the turn by 4-7 percent on every dataset-1 robot); 1 "
+        "keeps the commanded rate",
     )
 
 
@@ -360,6 +371,9 @@ def load_mrclam(
             " (raise it to accept)"
         )
     odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
+    # scales first, then the noise model of the scaled odometry (fit_scales says why)
+    scales = _odometry_scales(config, odo_t, odo_values, truth_t, truth_values, name)
+    odo_values = odo_values * np.array([scales["speed"], scales["turn"]])
     odometry_model = _odometry_noise_model(config, odo_t, odo_values, truth_t, truth_values, name)
     swaps: list[tuple[int, int]] = []
     if config.fix_swapped_labels:
@@ -412,7 +426,7 @@ def load_mrclam(
         truth_t[good], truth_values[good, :2], heading[good], subject_of, surveyed, swaps, scan_ids
     )
 
-    speeds = odo_values[:, 0] * config.odometry_speed_scale
+    speeds = odo_values[:, 0]
     if odometry_model is None:
         gyro_density = config.odometry_sigma_omega_rad_s * np.sqrt(step)
     else:
@@ -488,6 +502,7 @@ def load_mrclam(
         "options": config.model_dump(),
         "scans": len(scans),
         "odometry_noise": None if odometry_model is None else odometry_model.as_dict(),
+        "odometry_scales": scales,
     }
     return Sequence(
         name=name,
@@ -499,6 +514,69 @@ def load_mrclam(
         initial_state=initial_state,
         metadata=metadata,
     )
+
+
+def _increments(config: UtiasOptions, odo_t: np.ndarray, odo_values: np.ndarray):
+    """The odometry rows (time, speed, turn rate) as ``odometry_calibration.Increments``."""
+    from datasets.odometry_calibration import Increments
+
+    dt = np.diff(odo_t)
+    return Increments(
+        odo_t[1:] + config.odometry_delay_s,
+        dt,
+        np.column_stack([odo_values[1:, 0] * dt, np.zeros(len(dt)), odo_values[1:, 1] * dt]),
+    )
+
+
+def _truth_tolerance(truth_t: np.ndarray) -> float:
+    """Pairing odometry ends with truth samples: the nearest one (grid data: the same times;
+    printed logs: two clocks)."""
+    return 0.5 * float(np.median(np.diff(truth_t))) + 1e-9
+
+
+def _odometry_scales(
+    config: UtiasOptions,
+    odo_t: np.ndarray,
+    odo_values: np.ndarray,
+    truth_t: np.ndarray,
+    truth_values: np.ndarray,
+    name: str,
+) -> dict:
+    """The speed and turn-rate factors the odometry is multiplied by: as given, or ``fit``
+    against this robot's own Vicon over the whole recording (before ``duration_s`` trims
+    it, as the noise model), on windows of ``odometry_noise_window_s``. For the metadata:
+    both factors, where they came from and the heading RMS on the windows before and after."""
+    wanted = {"speed": config.odometry_speed_scale, "turn": config.odometry_turn_scale}
+    result: dict = {key: float(value) for key, value in wanted.items() if value != "fit"}
+    if len(result) == 2:
+        return {**result, "source": "given"}
+    from datasets.odometry_calibration import fit_scales
+
+    heading, _ = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
+    try:
+        fit = fit_scales(
+            _increments(config, odo_t, odo_values),
+            truth_t,
+            truth_values[:, :2],
+            heading,
+            config.odometry_noise_window_s,
+            tolerance_s=_truth_tolerance(truth_t),
+        )
+    except InputError as error:
+        raise InputError(
+            f"{name}: odometry_speed_scale / odometry_turn_scale = fit: {error} (give the "
+            "factors, e.g. --data odometry_turn_scale=1)"
+        ) from None
+    fitted = {"speed": fit.speed, "turn": fit.turn}
+    return {
+        **{key: result.get(key, fitted[key]) for key in ("speed", "turn")},
+        "source": (
+            f"fitted at load against {name}'s Vicon truth ({fit.windows} windows of "
+            f"{config.odometry_noise_window_s:g} s): speed {fit.speed:.4f}, turn {fit.turn:.4f}"
+        ),
+        "heading_rms_before_deg": float(np.rad2deg(fit.heading_rms_before_rad)),
+        "heading_rms_after_deg": float(np.rad2deg(fit.heading_rms_after_rad)),
+    }
 
 
 def _odometry_noise_model(
@@ -520,15 +598,9 @@ def _odometry_noise_model(
         return None
     if choice != "fit":
         return read_model_file(Path(choice))
-    from datasets.odometry_calibration import Increments, build_windows, fit_odometry_noise
+    from datasets.odometry_calibration import build_windows, fit_odometry_noise
 
-    dt = np.diff(odo_t)
-    speeds = odo_values[1:, 0] * config.odometry_speed_scale
-    increments = Increments(
-        odo_t[1:] + config.odometry_delay_s,
-        dt,
-        np.column_stack([speeds * dt, np.zeros(len(dt)), odo_values[1:, 1] * dt]),
-    )
+    increments = _increments(config, odo_t, odo_values)
     heading, _ = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
     try:
         windows = build_windows(
@@ -537,8 +609,7 @@ def _odometry_noise_model(
             truth_values[:, :2],
             heading,
             config.odometry_noise_window_s,
-            # nearest truth sample (grid data: the same times; printed logs: two clocks)
-            tolerance_s=0.5 * float(np.median(np.diff(truth_t))) + 1e-9,
+            tolerance_s=_truth_tolerance(truth_t),
         )
     except InputError as error:
         raise InputError(

@@ -108,6 +108,10 @@ def _utias(change: Callable[[Path], None] | None, robot: str = "robot1") -> Buil
             f"utias:{root}#{robot}",
             "--data",
             "odometry_noise=white",
+            "--data",
+            "odometry_speed_scale=1",
+            "--data",
+            "odometry_turn_scale=1",
         ]
 
     return build

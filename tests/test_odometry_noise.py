@@ -14,6 +14,7 @@ from datasets.odometry_calibration import (
     build_windows,
     compose,
     fit_odometry_noise,
+    fit_scales,
     window_nees,
 )
 from datasets.odometry_noise import OdometryNoiseModel, read_model_file
@@ -104,6 +105,21 @@ def test_fit_recovers_known_rates_and_whitens_the_windows() -> None:
     assert np.mean(window_nees(0.1 * TRUE_RATES, windows)) / 3 > 5.0
 
 
+def test_scale_fit_recovers_known_speed_and_turn_scales() -> None:
+    """Odometry that overstates the turn by 1/0.94 and the distance by 1/0.97 (UTIAS-like),
+    with the model's noise on top: the fit recovers both scales."""
+    increments, times, positions, headings = _simulated_odometry(seed=3)
+    biased = increments.values * np.array([1 / 0.97, 1 / 0.97, 1 / 0.94])
+    biased_increments = Increments(increments.t_end, increments.dt, biased)
+    fit = fit_scales(biased_increments, times, positions, headings, window_s=5.0)
+    assert fit.speed == pytest.approx(0.97, abs=0.003)
+    assert fit.turn == pytest.approx(0.94, abs=0.003)
+    assert fit.heading_rms_after_rad < 0.8 * fit.heading_rms_before_rad
+    unbiased = fit_scales(increments, times, positions, headings, window_s=5.0)
+    assert unbiased.speed == pytest.approx(1.0, abs=0.003)
+    assert unbiased.turn == pytest.approx(1.0, abs=0.003)
+
+
 def test_a_reference_glitch_is_excluded_and_counted() -> None:
     increments, times, positions, headings = _simulated_odometry(seed=1, steps=12000)
     positions = positions.copy()
@@ -133,6 +149,32 @@ def test_utias_odometry_fitted_against_vicon_is_speed_dependent(utias_folder: Pa
     assert np.ptp([c[0, 0] for c in covariances]) > 0
     white = load(f"{utias_folder}#robot2", 0, {"odometry_noise": "white"})
     assert white.noise.odometry is None
+
+
+def test_utias_odometry_scales_are_fitted_against_vicon_or_given(utias_folder: Path) -> None:
+    """The commanded velocities overstate both speed and turn (robot 1: about 6 %); the
+    loader fits both factors at load and says so, or takes them as given."""
+    from datasets.measurements import Odometry
+    from datasets.utias import load
+
+    fitted = load(f"{utias_folder}#robot1", 0, {"duration_s": "20"})
+    scales = fitted.metadata["odometry_scales"]
+    assert 0.9 < scales["speed"] < 0.98 and 0.9 < scales["turn"] < 0.98
+    assert "Vicon" in scales["source"]
+    assert scales["heading_rms_after_deg"] < scales["heading_rms_before_deg"]
+    given = load(
+        f"{utias_folder}#robot1",
+        0,
+        {"duration_s": "20", "odometry_speed_scale": "1", "odometry_turn_scale": "1"},
+    )
+    assert given.metadata["odometry_scales"] == {"speed": 1.0, "turn": 1.0, "source": "given"}
+    raw = [m for m in given.measurements() if isinstance(m, Odometry)]
+    scaled = [m for m in fitted.measurements() if isinstance(m, Odometry)]
+    assert len(raw) == len(scaled)
+    moving = next(k for k, m in enumerate(raw) if abs(m.velocity[1]) > 0.1)
+    np.testing.assert_allclose(
+        scaled[moving].velocity, [scales["speed"], scales["turn"]] * raw[moving].velocity
+    )
 
 
 def test_calibrate_noise_command_writes_a_model_the_loader_reads(
