@@ -528,10 +528,26 @@ def _increments(config: UtiasOptions, odo_t: np.ndarray, odo_values: np.ndarray)
     )
 
 
-def _truth_tolerance(truth_t: np.ndarray) -> float:
-    """Pairing odometry ends with truth samples: the nearest one (grid data: the same times;
-    printed logs: two clocks)."""
-    return 0.5 * float(np.median(np.diff(truth_t))) + 1e-9
+def _against_vicon(fit, config: UtiasOptions, rows: tuple, what: str, remedy: str):
+    """``fit(increments, truth_t, positions, headings, window_s, tolerance_s=...)`` of the
+    odometry against the robot's Vicon (headings repaired, each odometry end paired with
+    the nearest truth sample: grid data share the times, printed logs have two clocks),
+    on windows of ``odometry_noise_window_s``. ``rows``: odometry times and (speed, turn
+    rate) rows, truth times and (x, y, heading) rows. An ``InputError`` names ``what``
+    failed and the ``remedy``."""
+    odo_t, odo_values, truth_t, truth_values = rows
+    heading, _ = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
+    try:
+        return fit(
+            _increments(config, odo_t, odo_values),
+            truth_t,
+            truth_values[:, :2],
+            heading,
+            config.odometry_noise_window_s,
+            tolerance_s=0.5 * float(np.median(np.diff(truth_t))) + 1e-9,
+        )
+    except InputError as error:
+        raise InputError(f"{what}: {error} ({remedy})") from None
 
 
 def _odometry_scales(
@@ -552,21 +568,13 @@ def _odometry_scales(
         return {**result, "source": "given"}
     from datasets.odometry_calibration import fit_scales
 
-    heading, _ = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
-    try:
-        fit = fit_scales(
-            _increments(config, odo_t, odo_values),
-            truth_t,
-            truth_values[:, :2],
-            heading,
-            config.odometry_noise_window_s,
-            tolerance_s=_truth_tolerance(truth_t),
-        )
-    except InputError as error:
-        raise InputError(
-            f"{name}: odometry_speed_scale / odometry_turn_scale = fit: {error} (give the "
-            "factors, e.g. --data odometry_turn_scale=1)"
-        ) from None
+    fit = _against_vicon(
+        fit_scales,
+        config,
+        (odo_t, odo_values, truth_t, truth_values),
+        f"{name}: odometry_speed_scale / odometry_turn_scale = fit",
+        "give the factors, e.g. --data odometry_turn_scale=1",
+    )
     fitted = {"speed": fit.speed, "turn": fit.turn}
     return {
         **{key: result.get(key, fitted[key]) for key in ("speed", "turn")},
@@ -600,22 +608,13 @@ def _odometry_noise_model(
         return read_model_file(Path(choice))
     from datasets.odometry_calibration import build_windows, fit_odometry_noise
 
-    increments = _increments(config, odo_t, odo_values)
-    heading, _ = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
-    try:
-        windows = build_windows(
-            increments,
-            truth_t,
-            truth_values[:, :2],
-            heading,
-            config.odometry_noise_window_s,
-            tolerance_s=_truth_tolerance(truth_t),
-        )
-    except InputError as error:
-        raise InputError(
-            f"{name}: odometry_noise=fit: {error} (use --data odometry_noise=white, or a "
-            "model file from `workbench calibrate-noise`)"
-        ) from None
+    windows = _against_vicon(
+        build_windows,
+        config,
+        (odo_t, odo_values, truth_t, truth_values),
+        f"{name}: odometry_noise=fit",
+        "use --data odometry_noise=white, or a model file from `workbench calibrate-noise`",
+    )
     fit = fit_odometry_noise(windows, "")
     source = (
         f"fitted at load against {name}'s Vicon truth ({fit.windows} windows of "
