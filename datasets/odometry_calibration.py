@@ -19,6 +19,10 @@ make the residuals independent under the model. Windows whose residual lies beyo
 ``outlier_probability`` chi-square quantile of the fitted model (a reference glitch, a
 wheel lifted off the floor) are excluded and the fit repeated; their number is returned,
 never hidden.
+
+Systematic scale errors (commanded velocities that overstate the motion) are fitted first
+and separately, on the same windows (``fit_scales``): the noise model is then fitted to the
+scaled odometry.
 """
 
 from __future__ import annotations
@@ -361,9 +365,9 @@ def fit_scales(
     ``window_bounds`` best matches the reference's relative poses.
 
     A systematic error that the noise model (variances linear in time, distance and turn)
-    cannot hold: on UTIAS the commanded turn rate overstates the turn by 4-7 % on every
-    robot, in both halves of each recording, and a white model spends that error as noise
-    that is in fact the same sign for minutes. The fit minimises the window residuals
+    cannot hold: on UTIAS dataset 1 the commanded turn rate overstates the turn by 4-7 % on
+    every robot (2-8 % in each half of each recording), and a white model spends that error
+    as noise that is in fact the same sign for minutes. The fit minimises the window residuals
     (position [m] and heading [rad], each divided by its RMS with the raw odometry, so that
     neither unit dominates) with a soft-L1 loss, which keeps a few glitched windows from
     steering it (``scipy.optimize.least_squares``). Fit the scales first and the noise

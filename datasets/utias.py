@@ -64,7 +64,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
 
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, LandmarkScan, Measurement, Odometry, Sensor
@@ -157,13 +157,13 @@ class UtiasOptions(BaseModel):
         ge=0,
         description="calibration: shift the odometry (and gyro) later by this [s] (the commanded velocity leads the motion by about 0.16 s)",
     )
-    odometry_speed_scale: float | Literal["fit"] = Field(
+    odometry_speed_scale: PositiveFloat | Literal["fit"] = Field(
         "fit",
         description="calibration: multiply the forward velocity by this; 'fit': the factor that "
         "best matches this robot's Vicon over the whole recording (datasets.odometry_calibration"
         ".fit_scales); 1 keeps the commanded speed",
     )
-    odometry_turn_scale: float | Literal["fit"] = Field(
+    odometry_turn_scale: PositiveFloat | Literal["fit"] = Field(
         "fit",
         description="calibration: multiply the angular velocity by this; 'fit' as for the speed "
         "(the commanded turn rate overstates the turn by 4-7 percent on every dataset-1 robot); 1 "
