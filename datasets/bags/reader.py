@@ -117,9 +117,9 @@ class TimeBase:
         start_by: which stream sets the start (for messages), e.g. ``first stamp on /points``.
         end_by: which stream sets the end.
         spans: ``{stream: (first, last)}`` [s] of every defining stream.
-        first_cloud_s: when the start is the end of the first lidar sweep
-            (``start_at_first_pose``), that sweep's stamp: clouds are kept from it, the
-            other messages from ``start_s``; None otherwise.
+        first_cloud_s: when the start is the front end's first pose
+            (``start_at_first_pose``), the stamp of that pose's cloud (its sweep's start):
+            clouds are kept from it, the other messages from ``start_s``; None otherwise.
     """
 
     start_s: float

@@ -24,9 +24,9 @@ the start of the common time base t=.. (first stamp on /points)``, once the stre
 run); the interval and each stream's span are ``metadata["time_base"]``; the initial state
 is at the interval's start. With lidar odometry the interval starts at the front end's
 first pose (``start_at_first_pose``): where the first kept sweep ends when it is deskewed,
-else at that cloud's stamp. The estimators' first odometry increment starts there, and the
-sweep itself is read but not emitted. The front end's odometry and corners of the last kept cloud are stamped at its
-sweep end, which the lidar's span includes.
+else at that cloud's stamp. The estimators' first odometry increment starts there, and a
+deskewed first sweep is read but not emitted. The front end's odometry and corners of the
+last kept cloud are stamped at its sweep end, which the lidar's span includes.
 """
 
 from __future__ import annotations
