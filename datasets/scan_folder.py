@@ -22,14 +22,13 @@ from pydantic import ConfigDict, Field
 from datasets.bags.pointcloud2 import TIME_FIELDS, relative_point_seconds
 from datasets.bags.source import LidarSource, nest_dotted
 from datasets.errors import InputError
-from datasets.lidar.corners import CornerConfig
 from datasets.lidar.frontend import (
-    FrontEndSettings,
     LidarFrontEnd,
     LidarSourceOptions,
+    describe_lidar_options,
     with_front_end,
 )
-from datasets.lidar.kiss_icp_odometry import KissIcpSettings, pose_time
+from datasets.lidar.kiss_icp_odometry import pose_time
 from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model
 from datasets.sequence import InitialState, NoiseSpec, Sequence
@@ -291,16 +290,7 @@ def scans_sequence(
         raise InputError(f"{folder}: no .bin, .pcd or .ply scans")
     times = frame_times(folder, files, settings)
     order_problem = np.flatnonzero(np.diff(times) <= 0)
-    front_end = LidarFrontEnd(
-        FrontEndSettings(
-            odometry=settings.odometry,
-            corners=settings.corners,
-            warmup_frames=settings.warmup_frames,
-            confirm_corners=settings.confirm_corners,
-            kiss=settings.kiss,
-            corner=settings.corner,
-        )
-    )
+    front_end = LidarFrontEnd(settings.front_end_settings())
     source = LidarSource(front_end)
 
     def clouds():
@@ -378,10 +368,4 @@ def scans_sequence(
 
 def describe() -> list[str]:
     """Option lines for ``workbench list --verbose``."""
-    from datasets.options import describe_model
-
-    return (
-        describe_model(ScanFolderOptions)
-        + [f"kiss.{line}" for line in describe_model(KissIcpSettings)]
-        + [f"corner.{line}" for line in describe_model(CornerConfig)]
-    )
+    return describe_lidar_options(ScanFolderOptions)

@@ -59,14 +59,12 @@ from datasets.lidar.corner_truth import (
     sidecar_for,
     with_true_corner_ids,
 )
-from datasets.lidar.corners import CornerConfig
 from datasets.lidar.frontend import (
-    FrontEndSettings,
     LidarFrontEnd,
     LidarSourceOptions,
+    describe_lidar_options,
     with_front_end,
 )
-from datasets.lidar.kiss_icp_odometry import KissIcpSettings
 from datasets.measurements import Sensor
 from datasets.options import build_model, yaml_value
 from datasets.rotations import matrix_from_quat_wxyz
@@ -311,16 +309,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         max_skipped_fraction=settings.max_skipped_fraction,
         time_base=time_base,
     )
-    front_end = LidarFrontEnd(
-        FrontEndSettings(
-            odometry=settings.odometry,
-            corners=settings.corners,
-            warmup_frames=settings.warmup_frames,
-            confirm_corners=settings.confirm_corners,
-            kiss=settings.kiss,
-            corner=settings.corner,
-        )
-    )
+    front_end = LidarFrontEnd(settings.front_end_settings())
     source = LidarSource(front_end)
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
 
@@ -406,10 +395,4 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
 
 def describe() -> list[str]:
     """Option lines for ``workbench list --verbose``."""
-    from datasets.options import describe_model
-
-    return (
-        describe_model(BagOptions)
-        + [f"kiss.{line}" for line in describe_model(KissIcpSettings)]
-        + [f"corner.{line}" for line in describe_model(CornerConfig)]
-    )
+    return describe_lidar_options(BagOptions)

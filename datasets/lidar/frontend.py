@@ -80,6 +80,24 @@ class LidarSourceOptions(BaseModel):
         description="emit a corner only once it is found again where it was in the previous frame (KISS-ICP's poses; datasets.lidar.corner_tracking): the outline of a car slides with the viewpoint and is never a landmark",
     )
 
+    def front_end_settings(self) -> FrontEndSettings:
+        """The front end's share of these options."""
+        return FrontEndSettings(
+            **{name: getattr(self, name) for name in FrontEndSettings.model_fields}
+        )
+
+
+def describe_lidar_options(model: type[LidarSourceOptions]) -> list[str]:
+    """Option lines of a lidar source for ``workbench list --verbose``: its own, then the
+    nested KISS-ICP and corner settings as ``kiss.KEY`` and ``corner.KEY``."""
+    from datasets.options import describe_model
+
+    return (
+        describe_model(model)
+        + [f"kiss.{line}" for line in describe_model(KissIcpSettings)]
+        + [f"corner.{line}" for line in describe_model(CornerConfig)]
+    )
+
 
 @dataclass(frozen=True)
 class FrontEndFrame:
