@@ -371,22 +371,23 @@ def load_mrclam(
             " (raise it to accept)"
         )
     odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
+    # the whole recording's Vicon (headings repaired once): what the odometry is calibrated
+    # against and the label swaps are detected with, so that a short run gets the same
+    # calibration and map as the full one
+    full_heading, _ = repair_heading_glitches(
+        truth_values[:, 2], truth_t, config.max_heading_rate_rad_s
+    )
+    vicon = (truth_t, truth_values[:, :2], full_heading)
     # scales first, then the noise model of the scaled odometry (fit_scales says why)
-    scales = _odometry_scales(config, odo_t, odo_values, truth_t, truth_values, name)
+    scales = _odometry_scales(config, odo_t, odo_values, vicon, name)
     odo_values = odo_values * np.array([scales["speed"], scales["turn"]])
-    odometry_model = _odometry_noise_model(config, odo_t, odo_values, truth_t, truth_values, name)
+    odometry_model = _odometry_noise_model(config, odo_t, odo_values, vicon, name)
     swaps: list[tuple[int, int]] = []
     if config.fix_swapped_labels:
-        # on the whole recording, so that a short run gets the same map as the full one
         every_scan, _, _ = _build_scans(
             sightings, meas_t, (float(odo_t[0]), float(odo_t[-1])), subject_of, config
         )
-        full_heading, _ = repair_heading_glitches(
-            truth_values[:, 2], truth_t, config.max_heading_rate_rad_s
-        )
-        swaps = detect_label_swaps(
-            every_scan, truth_t, truth_values[:, :2], full_heading, subject_of, surveyed
-        )
+        swaps = detect_label_swaps(every_scan, *vicon, subject_of, surveyed)
     recording_span = (float(odo_t[0]), float(odo_t[-1]))
     if config.duration_s is not None:
         keep = odo_t <= config.duration_s
@@ -528,20 +529,26 @@ def _increments(config: UtiasOptions, odo_t: np.ndarray, odo_values: np.ndarray)
     )
 
 
-def _against_vicon(fit, config: UtiasOptions, rows: tuple, what: str, remedy: str):
+def _against_vicon(
+    fit,
+    config: UtiasOptions,
+    odo_t: np.ndarray,
+    odo_values: np.ndarray,
+    vicon: tuple,
+    what: str,
+    remedy: str,
+):
     """``fit(increments, truth_t, positions, headings, window_s, tolerance_s=...)`` of the
-    odometry against the robot's Vicon (headings repaired, each odometry end paired with
-    the nearest truth sample: grid data share the times, printed logs have two clocks),
-    on windows of ``odometry_noise_window_s``. ``rows``: odometry times and (speed, turn
-    rate) rows, truth times and (x, y, heading) rows. An ``InputError`` names ``what``
-    failed and the ``remedy``."""
-    odo_t, odo_values, truth_t, truth_values = rows
-    heading, _ = repair_heading_glitches(truth_values[:, 2], truth_t, config.max_heading_rate_rad_s)
+    odometry rows (times, (speed, turn rate)) against the robot's Vicon ``vicon`` = (times,
+    positions (m, 2), repaired headings), each odometry end paired with the nearest truth
+    sample (grid data share the times, printed logs have two clocks), on windows of
+    ``odometry_noise_window_s``. An ``InputError`` names ``what`` failed and the ``remedy``."""
+    truth_t, positions, heading = vicon
     try:
         return fit(
             _increments(config, odo_t, odo_values),
             truth_t,
-            truth_values[:, :2],
+            positions,
             heading,
             config.odometry_noise_window_s,
             tolerance_s=0.5 * float(np.median(np.diff(truth_t))) + 1e-9,
@@ -551,12 +558,7 @@ def _against_vicon(fit, config: UtiasOptions, rows: tuple, what: str, remedy: st
 
 
 def _odometry_scales(
-    config: UtiasOptions,
-    odo_t: np.ndarray,
-    odo_values: np.ndarray,
-    truth_t: np.ndarray,
-    truth_values: np.ndarray,
-    name: str,
+    config: UtiasOptions, odo_t: np.ndarray, odo_values: np.ndarray, vicon: tuple, name: str
 ) -> dict:
     """The speed and turn-rate factors the odometry is multiplied by: as given, or ``fit``
     against this robot's own Vicon over the whole recording (before ``duration_s`` trims
@@ -571,16 +573,20 @@ def _odometry_scales(
     fit = _against_vicon(
         fit_scales,
         config,
-        (odo_t, odo_values, truth_t, truth_values),
+        odo_t,
+        odo_values,
+        vicon,
         f"{name}: odometry_speed_scale / odometry_turn_scale = fit",
         "give the factors, e.g. --data odometry_turn_scale=1",
     )
     fitted = {"speed": fit.speed, "turn": fit.turn}
+    given = "".join(f"; {key} given as {value:g}" for key, value in result.items())
     return {
         **{key: result.get(key, fitted[key]) for key in ("speed", "turn")},
         "source": (
             f"fitted at load against {name}'s Vicon truth ({fit.windows} windows of "
-            f"{config.odometry_noise_window_s:g} s): speed {fit.speed:.4f}, turn {fit.turn:.4f}"
+            f"{config.odometry_noise_window_s:g} s): speed {fit.speed:.4f}, turn "
+            f"{fit.turn:.4f}{given}"
         ),
         "heading_rms_before_deg": float(np.rad2deg(fit.heading_rms_before_rad)),
         "heading_rms_after_deg": float(np.rad2deg(fit.heading_rms_after_rad)),
@@ -588,12 +594,7 @@ def _odometry_scales(
 
 
 def _odometry_noise_model(
-    config: UtiasOptions,
-    odo_t: np.ndarray,
-    odo_values: np.ndarray,
-    truth_t: np.ndarray,
-    truth_values: np.ndarray,
-    name: str,
+    config: UtiasOptions, odo_t: np.ndarray, odo_values: np.ndarray, vicon: tuple, name: str
 ) -> OdometryNoiseModel | None:
     """The odometry noise model ``config.odometry_noise`` asks for: ``fit`` against this
     robot's own Vicon truth over the whole recording (``datasets.odometry_calibration``,
@@ -611,7 +612,9 @@ def _odometry_noise_model(
     windows = _against_vicon(
         build_windows,
         config,
-        (odo_t, odo_values, truth_t, truth_values),
+        odo_t,
+        odo_values,
+        vicon,
         f"{name}: odometry_noise=fit",
         "use --data odometry_noise=white, or a model file from `workbench calibrate-noise`",
     )
