@@ -388,8 +388,6 @@ def fit_scales(
         )
     steps = slice(int(starts[0]), int(stops[-1]))
     values = increments.values[steps]
-    window_of = np.repeat(np.arange(len(starts)), stops - starts)
-    first_in_window = np.r_[True, window_of[1:] != window_of[:-1]]
     start_rotation = rot2_batch(reference_headings[ref_a])
     relative_position = np.einsum(
         "wji,wj->wi", start_rotation, reference_positions[ref_b] - reference_positions[ref_a]
@@ -401,9 +399,8 @@ def fit_scales(
         speed, turn = scales
         turns = turn * values[:, 2]
         total = np.cumsum(turns)
-        # heading before each step, from its window's start frame
+        # heading before each step, from its window's start frame (exactly 0 at the first)
         before = total - turns - np.repeat((total - turns)[offsets], stops - starts)
-        before = np.where(first_in_window, 0.0, before)
         cos, sin = np.cos(before), np.sin(before)
         moved = speed * np.column_stack(
             [cos * values[:, 0] - sin * values[:, 1], sin * values[:, 0] + cos * values[:, 1]]
