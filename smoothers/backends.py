@@ -91,6 +91,15 @@ def isam2_params(
     thresholds.insert(("l", np.full(dimension, relinearize_threshold)))
     params.setRelinearizeThreshold(thresholds)
     params.relinearizeSkip = relinearize_skip
+    # Back-substitute every variable at every update (wildfire threshold 0). GTSAM's default
+    # (0.001, in each variable's own tangent units) leaves a variable's delta stale when its
+    # change is below that: a gyro bias with sigma 1.8e-4 rad/s never hears of a loop
+    # closure, and ``calculateEstimate`` then returned smoothed gyro biases up to 4.3 sigma
+    # from the converged batch solution on a 30 s loop (smoothed gyro-bias NEES 3.7 per dof
+    # over 35 runs of the 100 s loop against the batch smoother's 0.98).
+    optimisation = gtsam.ISAM2GaussNewtonParams()
+    optimisation.setWildfireThreshold(0.0)
+    params.setOptimizationParams(optimisation)
     params.setFactorization(factorization)
     return params
 
