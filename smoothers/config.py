@@ -93,7 +93,7 @@ class SmootherConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOptio
     )
     imu_interpolation: bool = Field(
         True,
-        description="integrate the line between consecutive samples (instantaneous samples); false: zero-order hold",
+        description="IMU or rate gyro: integrate the line between consecutive samples (instantaneous samples, the filters' 'average'); false: zero-order hold",
     )
 
 

@@ -84,4 +84,5 @@ def motion_model(
         gyro_walk,
         c.odometry_lateral_sigma_m_s,
         c.max_imu_gap_s,
+        c.imu_interpolation,
     )
