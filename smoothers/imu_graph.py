@@ -7,9 +7,11 @@ Conventions (DESIGN.md, and GTSAM's own):
 - gravity is an acceleration (0, 0, -g) in a z-up world: ``MakeSharedU(g)``;
 - ``ConstantBias.vector()`` is ordered [accelerometer, gyroscope].
 
-Sample timing: a sample at ``t_i`` is held (zero-order hold) over ``[t_i, t_{i+1})``. A
-keyframe that falls between two samples splits that interval, so every keyframe sits at the
-exact time of its measurement.
+Sample timing: samples are instantaneous values; over ``[t_i, t_{i+1})`` the value used is
+the straight line between the two samples at the sub-interval's midpoint (zero-order hold of
+``t_i``'s sample with ``imu_interpolation=false``), and the specific force is applied at the
+sub-interval's mid-attitude (``specific_force_at_step_start``). A keyframe that falls between
+two samples splits that interval, so every keyframe sits at the exact time of its measurement.
 """
 
 from __future__ import annotations
@@ -87,6 +89,39 @@ def combined_params(noise: ImuNoise, gravity_m_s2: float) -> gtsam.Preintegratio
     return params
 
 
+def specific_force_at_step_start(
+    accel: np.ndarray, gyro: np.ndarray, dt: float, bias: gtsam.imuBias.ConstantBias
+) -> np.ndarray:
+    """The specific force to hand GTSAM so that it is applied at the step's mid-attitude.
+
+    GTSAM's preintegration rotates a step's specific force by the attitude at the *start* of
+    the step (``deltaVij += deltaRik a dt``; checked: one step of 0.5 s at 1 rad/s about z
+    with a = (1, 0, 0) gives deltaV = (0.5, 0, 0), the exact integral being
+    (sin 0.5, 1 - cos 0.5, 0)), which is first order in dt however well the sample itself
+    is interpolated. Over a step the body turns by (omega - b_g) dt; rotating the unbiased
+    specific force by half of that turn, ``Exp((omega - b_g) dt / 2) (a - b_a) + b_a``,
+    makes GTSAM apply it at the mid-attitude: second order, the midpoint rule. On the
+    noise-free ``sim:aghili-rover`` (20 Hz IMU, 60 s) the start-attitude rule alone put
+    iSAM2's smoothed attitude NEES at 1.66 (3 dof) and the smoothers read optimistic on
+    every rover row of the consistency suite (smoothed attitude 2.4 per dof at 20 Hz).
+
+    The noise is isotropic, so its covariance is unchanged; the bias Jacobians GTSAM keeps
+    are off by the half turn (a first-order term in dt), as its own are.
+
+    Args:
+        accel: the step's specific force [m/s^2], shape (3,).
+        gyro: the step's angular rate [rad/s], shape (3,).
+        dt: the step [s].
+        bias: the bias the preintegration is linearised at.
+
+    Returns:
+        The specific force to pass to ``integrateMeasurement`` [m/s^2], shape (3,).
+    """
+    accel_bias = bias.accelerometer()
+    half_turn = gtsam.Rot3.Expmap((gyro - bias.gyroscope()) * (0.5 * dt))
+    return half_turn.rotate(accel - accel_bias) + accel_bias
+
+
 @dataclass
 class KeyframeImuIntegrator:
     """Accumulates IMU samples into a preintegration since the last keyframe.
@@ -138,6 +173,7 @@ class KeyframeImuIntegrator:
             weight = (0.5 * (self.cursor + t) - self.held_t) / (next_t - self.held_t)
             gyro = gyro + weight * (next_gyro - gyro)
             accel = accel + weight * (next_accel - accel)
+        accel = specific_force_at_step_start(accel, gyro, dt, self.pim.biasHat())
         self.pim.integrateMeasurement(accel, gyro, dt)
         self.integrated_s += dt
         self.cursor = t
