@@ -11,6 +11,8 @@ from gtsam.symbol_shorthand import L, V, X
 
 from datasets.measurements import GyroSample
 from datasets.rotations import so3_exp
+from smoothers import imu_graph
+from smoothers.imu_graph import ImuNoise, KeyframeImuIntegrator, combined_params
 from smoothers.landmark_factors import (
     body_point_factor_2d,
     body_point_factor_3d,
@@ -242,37 +244,26 @@ def test_gyro_accumulator_integrates_instantaneous_samples_exactly_for_a_linear_
     assert dtheta == pytest.approx(exact(0.0, 0.15), abs=1e-12)
 
 
-def _preintegrated(rate_hz: float, bias: gtsam.imuBias.ConstantBias, rotate: bool):
-    """One second of constant body rate and specific force, sampled at ``rate_hz``."""
-    from smoothers import imu_graph
-    from smoothers.imu_graph import ImuNoise, KeyframeImuIntegrator, combined_params
-
-    rate = np.array([0.3, -0.2, 0.5])
-    force = np.array([0.5, -0.2, 9.81])
+def _preintegrated_second(bias: gtsam.imuBias.ConstantBias, rate: np.ndarray, force: np.ndarray):
+    """One second of constant body ``rate`` and specific ``force``, sampled at 20 Hz and
+    biased by ``bias``, preintegrated from a keyframe at 0 s to one at 1 s."""
     params = combined_params(ImuNoise(1e-3, 1e-2, 1e-5, 1e-4), 9.81)
     integrator = KeyframeImuIntegrator(params, max_gap_s=1.0)
     integrator.start(0.0, bias)
-    original = imu_graph.specific_force_at_step_start
-    if not rotate:
-        imu_graph.specific_force_at_step_start = lambda accel, *_: accel
-    try:
-        for t in np.arange(int(rate_hz) + 2) / rate_hz:
-            integrator.add(t, rate + bias.gyroscope(), force + bias.accelerometer())
-            if t >= 1.0:
-                break
-        pim = integrator.close(1.0)
-    finally:
-        imu_graph.specific_force_at_step_start = original
-    return pim, rate, force
+    for t in np.arange(21) / 20.0:
+        integrator.add(t, rate + bias.gyroscope(), force + bias.accelerometer())
+    return integrator.close(1.0)
 
 
-def test_imu_preintegration_applies_the_specific_force_at_the_mid_attitude():
+def test_imu_preintegration_applies_the_specific_force_at_the_mid_attitude(monkeypatch):
     """GTSAM rotates a step's specific force by the start attitude (first order); the
     integrator hands it a force pre-rotated by half the step's turn, so that 20 Hz samples
     reproduce the exact integral of a constant body rate and force (reference: 20 000
     trapezoid steps of the closed-form attitude Exp(omega t)), with a non-zero bias."""
     bias = gtsam.imuBias.ConstantBias(np.array([0.05, -0.03, 0.02]), np.array([2e-3, -1e-3, 3e-3]))
-    pim, rate, force = _preintegrated(20.0, bias, rotate=True)
+    rate = np.array([0.3, -0.2, 0.5])
+    force = np.array([0.5, -0.2, 9.81])
+    pim = _preintegrated_second(bias, rate, force)
     times = np.linspace(0.0, 1.0, 20_001)
     accelerations = np.array([so3_exp(rate * t) @ force for t in times])
     velocity = np.concatenate(
@@ -283,7 +274,8 @@ def test_imu_preintegration_applies_the_specific_force_at_the_mid_attitude():
     position_error = np.linalg.norm(pim.deltaPij() - position)
     # measured: 2.1e-4 m/s and 6.7e-4 m (start-attitude rule: 0.081 m/s and 0.040 m)
     assert velocity_error < 5e-4 and position_error < 1.5e-3
-    held_pim, *_ = _preintegrated(20.0, bias, rotate=False)
+    monkeypatch.setattr(imu_graph, "specific_force_at_step_start", lambda accel, *_: accel)
+    held_pim = _preintegrated_second(bias, rate, force)
     # GTSAM's own start-attitude rule misses by a first-order term, ~|a| |omega| dt / 2.
     assert np.linalg.norm(held_pim.deltaVij() - velocity[-1]) > 100 * velocity_error
     assert np.linalg.norm(held_pim.deltaPij() - position) > 20 * position_error
