@@ -266,7 +266,8 @@ class KeyframeSmoother:
         self._before_update(t)
         graph, values, times = self.pending.take()
         self.full_graph.push_back(graph)
-        self.backend.update(graph, values, times, t)
+        newest = self.motion.keys(len(self.keyframe_t) - 1)
+        self.backend.update(graph, values, times, t, newest)
         self._report_fallback()
         # Only the newest keyframe's state is needed to go on (the full estimate is O(n)).
         self.estimate_values = self.backend.values(self.motion.keys(len(self.keyframe_t) - 1))
