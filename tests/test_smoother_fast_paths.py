@@ -233,9 +233,10 @@ def test_keeping_the_newest_keyframe_in_the_root_changes_no_estimate(rover_isam2
     for history in ("causal", "smoothed"):
         a, b = getattr(ordered, history), getattr(default, history)
         assert _difference(a.pose.positions, b.pose.positions) < 1e-9
-        assert _difference(a.pose.covariances, b.pose.covariances) < 1e-7 * np.abs(
-            b.pose.covariances
-        ).max()
+        assert (
+            _difference(a.pose.covariances, b.pose.covariances)
+            < 1e-7 * np.abs(b.pose.covariances).max()
+        )
         for name, block in b.blocks.items():
             assert _difference(a.blocks[name].values, block.values) < 1e-9
             scale = np.abs(block.covariances).max()
