@@ -155,8 +155,8 @@ def test_3d_relative_pose_odometry_factors_tighten_the_trajectory():
 def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     """Victoria Park's first 1000 steps have stretches without landmarks longer than the
     5 s window: keyframes on motion alone bridge them. With keep_map=true a landmark seen
-    again is the same variable; by default it comes back from its departure marginal (an
-    event per return)."""
+    again is the same variable (the default); with keep_map=false it comes back from its
+    departure marginal (an event per return)."""
     from datasets.victoria_park import default_path
 
     if not default_path().is_file():
@@ -164,7 +164,8 @@ def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     sequence = load_dataset("victoria-park", 0, {"max_steps": "1000"})
     scan_times = np.array([m.t for m in sequence.measurements() if isinstance(m, LandmarkScan)])
     assert np.max(np.diff(scan_times)) > 5.0  # the gap the window must bridge
-    kept = SmootherFixedLag(SmootherFixedLag.Config(keep_map=True), sequence)
+    assert SmootherFixedLag.Config().keep_map
+    kept = SmootherFixedLag(SmootherFixedLag.Config(), sequence)
     for measurement in sequence.measurements():
         kept.process(measurement)
     estimate = kept.estimate()
@@ -173,7 +174,7 @@ def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     assert returns == []
     seen = {int(i) for _, ids in sequence.ground_truth.scan_ids for i in ids}
     assert len(estimate.landmarks) == len(seen)
-    leaving = SmootherFixedLag(SmootherFixedLag.Config(), sequence)
+    leaving = SmootherFixedLag(SmootherFixedLag.Config(keep_map=False), sequence)
     for measurement in sequence.measurements():
         leaving.process(measurement)
     left = leaving.estimate()
