@@ -57,9 +57,17 @@ def test_yaml_values_reach_the_options_as_the_cli_text_would() -> None:
 def test_a_copied_and_edited_suite_runs(tmp_path: Path, capsys) -> None:
     assert main(["suite", "tiny"]) == 0
     values = yaml.safe_load(capsys.readouterr().out)
-    values["datasets"] = [{"name": "sim:circle", "data": {"duration_s": 3}, "label": "circle 3 s"}]
+    values["datasets"] = [
+        {
+            "name": "sim:circle",
+            "data": {"duration_s": 3},
+            "label": "circle 3 s",
+            "left_out": {"sensor-based": "not this time"},
+        }
+    ]
     values["estimators"] = [
         "dead-reckoning",
+        "sensor-based",
         {
             "name": "ekf-slam",
             "label": "ekf-slam (slow walk)",
@@ -71,17 +79,29 @@ def test_a_copied_and_edited_suite_runs(tmp_path: Path, capsys) -> None:
     suite_file.write_text(yaml.safe_dump(values))
     out = tmp_path / "bench"
     assert main(["bench", str(suite_file), "--out", str(out), "--no-plots"]) == 0
-    rows = list(csv.DictReader((out / "table.csv").open()))
-    assert [(row["dataset"], row["estimator"]) for row in rows] == [
-        ("circle 3 s", "dead-reckoning"),
-        ("circle 3 s", "ekf-slam (slow walk)"),
+    planned = _pairs_with_status(out)
+    assert planned == [
+        ("circle 3 s", "dead-reckoning", "ok"),
+        ("circle 3 s", "sensor-based", "n/a"),
+        ("circle 3 s", "ekf-slam (slow walk)", "ok"),
     ]
+    # the report of the runs on disk keeps the suite's order and its left-out pairs
+    (out / "table.csv").unlink()
+    report = ["bench", str(suite_file), "--out", str(out), "--no-plots", "--report-only"]
+    assert main(report) == 0
+    assert _pairs_with_status(out) == planned
+    assert "not this time" in (out / "table.md").read_text()
     request = json.loads(
         (
             out / "runs" / "circle-3-s" / "ekf-slam-slow-walk" / "seed-0" / "bench_request.json"
         ).read_text()
     )
     assert request["overrides"] == {"acceleration_density": "0.05"}
+
+
+def _pairs_with_status(out: Path) -> list[tuple[str, str, str]]:
+    rows = list(csv.DictReader((out / "table.csv").open()))
+    return [(row["dataset"], row["estimator"], row["status"]) for row in rows]
 
 
 @pytest.mark.parametrize(

@@ -60,7 +60,7 @@ def bench(
     from workbench.results.summary import PlannedPair
     from workbench.sweep import pending_cells, run_sweep
     from workbench.sweep.backends import make_backend
-    from workbench.sweep.plan import plan_sweep
+    from workbench.sweep.plan import pairs_on_disk, plan_sweep
 
     suite = restrict(get_suite(suite_name), datasets, estimators)
     names = list(dict.fromkeys(spec.name for spec in suite.estimators))
@@ -69,8 +69,12 @@ def bench(
     out = Path(out).resolve()
     formats = plot_formats if plots else ()
     if report_only:
-        # what is on disk, without probing any dataset again
-        report = write_report(load_runs([out / "runs"]), out, plot_formats=formats)
+        # what is on disk, in the suite's order with its left-out pairs, without probing
+        # any dataset again
+        records = load_runs([out / "runs"])
+        labels = {(record.dataset_label, record.estimator_label) for record in records}
+        pairs = pairs_on_disk(suite, runs, labels)
+        report = write_report(records, out, pairs, plot_formats=formats)
         return BenchOutcome(report, failed=sum(1 for r in report.rows for _ in r.errors()))
     interactive = sys.stderr.isatty() if show_progress is None else show_progress
     backend = make_backend(scheduler, workers)

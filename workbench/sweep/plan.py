@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from datasets.errors import InputError, one_line
+from workbench.results.summary import PlannedPair
 from workbench.suites import DatasetSpec, EstimatorSpec, Suite, available_parts, prepare_dataset
 
 if TYPE_CHECKING:
@@ -117,6 +118,32 @@ def run_folder(out: Path, dataset: DatasetSpec, estimator: EstimatorSpec, seed: 
 def seeds_for(dataset: DatasetSpec, runs: int) -> range:
     """Seeds 0..runs-1 for a simulated dataset; only seed 0 for a fixed recording."""
     return range(runs if dataset.seeded else 1)
+
+
+def pairs_on_disk(
+    suite: Suite, runs: int, labels_on_disk: set[tuple[str, str]]
+) -> list[PlannedPair]:
+    """The suite's pairs in its order, without probing a dataset (``bench --report-only``):
+    the pairs with runs on disk (``(dataset label, estimator label)``), planned with the
+    suite's seeds, and the pairs the suite leaves out, n/a with its reason. A pair with
+    neither is left to the planning run to judge (it may be incompatible)."""
+    pairs = []
+    for dataset in suite.datasets:
+        for estimator in suite.estimators:
+            reason = dataset.left_out_reason(estimator.name)
+            on_disk = (dataset.title, estimator.title) in labels_on_disk
+            if reason is None and not on_disk:
+                continue
+            pairs.append(
+                PlannedPair(
+                    dataset.title,
+                    estimator.title,
+                    estimator.name,
+                    0 if reason is not None else len(seeds_for(dataset, runs)),
+                    reason,
+                )
+            )
+    return pairs
 
 
 def probe_dataset(
