@@ -37,6 +37,7 @@ ACCURACY_KEYS = (
     "rpe_rot_rmse_deg",
     "final_orientation_error_deg",
     "gps_holdout_rmse_m",
+    "gps_holdout_rmse_smoothed_m",
 )
 MAP_KEYS = (
     "landmarks_in_map",

@@ -57,6 +57,8 @@ STAT_COLUMNS = (
     StatColumn("rpe_rot_rmse_deg", "RPE rot [deg]"),
     StatColumn("final_orientation_error_deg", "final orient. [deg]"),
     StatColumn("gps_holdout_rmse_m", "GPS hold-out [m]"),
+    # the smoothed trajectory's: the batch smoother's only one (it has no causal estimate)
+    StatColumn("gps_holdout_rmse_smoothed_m", "GPS hold-out smoothed [m]"),
 )
 TAIL_COLUMNS = (
     StatColumn("landmarks_in_map", "landmarks"),
