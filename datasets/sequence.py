@@ -10,6 +10,7 @@ import numpy as np
 
 from datasets.measurements import Measurement, Sensor
 from datasets.odometry_noise import OdometryNoiseModel
+from datasets.sighting_correlation import SightingCorrelation
 from datasets.state import GroundTruth, LandmarkMap
 
 
@@ -35,6 +36,9 @@ class NoiseSpec:
         landmark_field_of_view_deg: horizontal field of view of the landmark sensor,
             centred on the body x axis [deg] (a landmark outside it cannot be seen).
         landmark_range_m: the landmark sensor's maximum range [m].
+        sighting_correlation: how the errors of consecutive sightings of one landmark are
+            correlated in time (``datasets.sighting_correlation``; every estimator's
+            association policy inflates their noise by it), or None: independent.
         rate_hz: nominal sample rate of each sensor.
     """
 
@@ -49,6 +53,7 @@ class NoiseSpec:
     odometry: OdometryNoiseModel | None = None
     landmark_field_of_view_deg: float | None = None
     landmark_range_m: float | None = None
+    sighting_correlation: SightingCorrelation | None = None
     rate_hz: dict[str, float] = field(default_factory=dict)
 
 

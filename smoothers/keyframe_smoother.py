@@ -133,7 +133,7 @@ class KeyframeSmoother:
         self.scans = LandmarkScans(
             config,
             self.dimension,
-            AssociationPolicy(config, self.dimension),
+            AssociationPolicy(config, self.dimension, sequence.noise.sighting_correlation),
             self.recorder,
             self.backend,
             self.pending,

@@ -164,6 +164,12 @@ class LandmarkScans:
             self.needs_prediction(scan),
         )
         association = decided.association.embedded(usable, len(points), AT_SENSOR_ORIGIN)
+        matched = association.rows(AssociationDecision.MATCHED)
+        landmarks = np.full(len(points), -1, dtype=int)
+        landmarks[matched] = [
+            decided.candidates[int(i)].map_id for i in association.candidates[matched]
+        ]
+        association = self.policy.decorrelated(association, scan.t, points, landmarks)
         if association.search is not None and association.search.truncated:
             self.recorder.event(scan.t, "jcbb_truncated", nodes=association.search.nodes)
         if decided.predictor is not None and self.config.innovation_nis:
@@ -181,6 +187,7 @@ class LandmarkScans:
                 else:
                     returning = association.mode == "ids" and int(scan.ids[index]) in self.departed
                     landmark = self._map_new(k, scan, index, pose, point, association)
+                    self.policy.sighted(landmark.map_id, scan.t)
                     if returning:
                         # the same landmark back in the fixed-lag window (a new variable
                         # with its departure prior): scored as the association it is, not

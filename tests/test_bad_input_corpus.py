@@ -112,6 +112,8 @@ def _utias(change: Callable[[Path], None] | None, robot: str = "robot1") -> Buil
             "odometry_speed_scale=1",
             "--data",
             "odometry_turn_scale=1",
+            "--data",
+            "sighting_correlation=none",
         ]
 
     return build

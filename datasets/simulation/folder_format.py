@@ -18,7 +18,9 @@ import numpy as np
 
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
+from datasets.odometry_noise import OdometryNoiseModel
 from datasets.sequence import InitialState, NoiseSpec, Sequence
+from datasets.sighting_correlation import Autocorrelation, SightingCorrelation
 from datasets.state import BlockName, Frame, GroundTruth, LandmarkMap, StateBlock, StateHistory
 from datasets.trajectory import Trajectory
 from datasets.trajectory_io import format_tum, read_tum, write_atomic
@@ -380,11 +382,30 @@ def read_sequence_folder(path: str | Path) -> Sequence:
         sensors=sensors,
         stream=stream,
         ground_truth=truth,
-        noise=NoiseSpec(**noise_fields),
+        noise=_noise_spec(noise_fields),
         initial_state=initial_state,
         known_landmarks=known,
         metadata=description.get("metadata") or {},
     )
+
+
+def _noise_spec(fields: dict) -> NoiseSpec:
+    """``NoiseSpec`` from its ``sequence.json`` form (``dataclasses.asdict``: the nested
+    models come back as dicts)."""
+    fields = dict(fields)
+    odometry = fields.get("odometry")
+    if isinstance(odometry, dict):
+        fields["odometry"] = OdometryNoiseModel(
+            np.array(odometry["rates"], dtype=float), odometry.get("source", "")
+        )
+    correlation = fields.get("sighting_correlation")
+    if isinstance(correlation, dict):
+        fields["sighting_correlation"] = SightingCorrelation(
+            Autocorrelation(**correlation["radial"]),
+            Autocorrelation(**correlation["tangential"]),
+            correlation.get("source", ""),
+        )
+    return NoiseSpec(**fields)
 
 
 def _read_ground_truth(

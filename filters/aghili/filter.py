@@ -99,7 +99,7 @@ class AghiliFilter:
         self.config = config
         self.name = sequence.name
         self.recorder = EstimateRecorder(3, config.snapshot_interval_s)
-        self.policy = AssociationPolicy(config, 3)
+        self.policy = AssociationPolicy(config, 3, sequence.noise.sighting_correlation)
         self.notes: list[str] = []
         noise = sequence.noise
         missing = [
@@ -323,15 +323,20 @@ class AghiliFilter:
             association = association.overrule(
                 association.rows(Decision.NEW), Decision.REJECTED, "map not anchored yet"
             )
+        map_ids = self._map_targets()[0]
+        matched = association.rows(Decision.MATCHED)
+        landmarks = np.full(k, -1, dtype=int)
+        landmarks[matched] = map_ids[association.candidates[matched]]
+        association = self.policy.decorrelated(association, scan.t, points, landmarks)
         self._update(scan, points, R, association)
         R_after = self._measurement_noise(scan, k)
-        map_ids = self._map_targets()[0]
         for j, decision in enumerate(association.decisions):
             landmark_id = -1
             if decision == Decision.NEW:
                 with_ids = scan.ids is not None and association.mode == "ids"
                 landmark_id = int(scan.ids[j]) if with_ids else self._new_id()
                 self._augment(points[j], R_after[j], landmark_id)
+                self.policy.sighted(landmark_id, scan.t)
             elif decision == Decision.MATCHED:
                 landmark_id = int(map_ids[association.candidates[j]])
             self.recorder.association(

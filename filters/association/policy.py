@@ -32,6 +32,12 @@ reckoning). Why not re-initialise the landmark: when it is the vehicle that drif
 throws away the map's information and corrupts it. Inflating is the Huber-type step of a
 robust M-estimator: a wrong pose is pulled back over a few scans, while a single bad
 sighting (a wrong id) moves the state by no more than a sighting at the gate would.
+
+Sightings whose errors are correlated in time (``datasets.sighting_correlation``, where the
+sequence states a model): ``decorrelated`` inflates the noise of each matched sighting for
+the time since the previous sighting of the same landmark, so that a burst of sightings
+counts as the information it carries, not as that many independent measurements. Gating
+and the recorded NIS use the sighting's own noise; the update uses the inflated one.
 """
 
 from __future__ import annotations
@@ -45,6 +51,7 @@ import numpy as np
 from datasets.errors import InputError
 from datasets.estimate import AssociationDecision
 from datasets.estimator_options import AssociationOptions
+from datasets.sighting_correlation import SightingCorrelation
 from filters.association.compatibility import chi2_gate, individual_compatibility
 from filters.association.jcbb import (
     AssociationResult,
@@ -221,11 +228,52 @@ def _empty(mode: Mode, measured_cov: np.ndarray) -> ScanAssociation:
 
 
 class AssociationPolicy:
-    """Decides every sighting of a scan (module docstring) under ``AssociationOptions``."""
+    """Decides every sighting of a scan (module docstring) under ``AssociationOptions``.
 
-    def __init__(self, options: AssociationOptions, dimension: int) -> None:
+    Args:
+        correlation: the sequence's model of sighting errors correlated in time
+            (``NoiseSpec.sighting_correlation``), or None (independent sightings).
+    """
+
+    def __init__(
+        self,
+        options: AssociationOptions,
+        dimension: int,
+        correlation: SightingCorrelation | None = None,
+    ) -> None:
         self.options = options
         self.dimension = dimension
+        self.correlation = correlation
+        self._last_sighting: dict[int, float] = {}
+
+    # ------------------------------------------------------------------ correlation
+    def decorrelated(
+        self, association: ScanAssociation, t: float, measured: np.ndarray, landmarks: np.ndarray
+    ) -> ScanAssociation:
+        """The association with the noise of every matched sighting inflated for the time
+        since the previous sighting of its landmark (module docstring; unchanged without a
+        correlation model), and ``t`` [s] remembered as that landmark's latest sighting.
+
+        Args:
+            measured: (k, d) the sightings. landmarks: (k,) the map id each matched row is
+                paired with (other rows are ignored).
+        """
+        if self.correlation is None:
+            return association
+        noise = association.noise.copy()
+        for j in association.rows(Decision.MATCHED):
+            landmark = int(landmarks[j])
+            previous = self._last_sighting.get(landmark)
+            if previous is not None:
+                noise[j] = self.correlation.inflate(noise[j], measured[j], t - previous)
+            self._last_sighting[landmark] = float(t)
+        return replace(association, noise=noise)
+
+    def sighted(self, landmark: int, t: float) -> None:
+        """A new landmark ``landmark`` (map id) was created from a sighting at ``t`` [s]: the
+        next sighting is correlated with that one."""
+        if self.correlation is not None:
+            self._last_sighting[int(landmark)] = float(t)
 
     def mode(self, scan_ids: np.ndarray | None, t: float) -> Mode:
         """``ids`` when the options and the scan allow it, else the geometric method."""

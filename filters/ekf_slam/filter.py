@@ -136,7 +136,7 @@ class EkfSlam:
         # time of the last motion input: a scan between motion samples moves ``t`` but not this
         self.motion_t = float(start.t)
         self.recorder = EstimateRecorder(d, config.snapshot_interval_s)
-        self.policy = AssociationPolicy(config, d)
+        self.policy = AssociationPolicy(config, d, sequence.noise.sighting_correlation)
         self.gaps = 0
         self.association_modes: set[str] = set()
         self.last_rate: np.ndarray | None = None
@@ -266,12 +266,16 @@ class EkfSlam:
                 if search.truncated:
                     self.recorder.event(scan.t, "jcbb_truncated", nodes=search.nodes)
         matched = association.rows(AssociationDecision.MATCHED)
+        landmarks = np.full(len(points), -1, dtype=int)
+        landmarks[matched] = np.asarray(self.map_ids, dtype=int)[association.candidates[matched]]
+        association = self.policy.decorrelated(association, scan.t, points, landmarks)
         if len(matched):
             self._update(scan.t, points[matched], noise[matched], association, matched)
         created: dict[int, int] = {}
         for j in association.rows(AssociationDecision.NEW):
             source = int(scan.ids[j]) if mode == "ids" else -1
             created[int(j)] = self._add_landmark(scan.t, points[j], noise[j], source)
+            self.policy.sighted(self.map_ids[created[int(j)]], scan.t)
         self._record_associations(scan.t, association, created)
         self._prune(scan.t)
         self.recorder.landmark_count(scan.t, len(self.map_ids))

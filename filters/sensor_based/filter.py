@@ -181,7 +181,7 @@ class SensorBasedSlam:
             )
         )
         self.recorder = EstimateRecorder(d, config.snapshot_interval_s)
-        self.policy = AssociationPolicy(config, d)
+        self.policy = AssociationPolicy(config, d, sequence.noise.sighting_correlation)
         start_rotation, start_position = np.eye(d), np.zeros(d)
         if start is not None:
             start_rotation = (
@@ -460,6 +460,8 @@ class SensorBasedSlam:
             directions = np.asarray(scan.directions, dtype=float).reshape(k, -1, d)
 
         association = self._associate(t, scan.ids, points, covs, usable)
+        # matched candidates are landmark ids here (``_associate``)
+        association = self.policy.decorrelated(association, t, points, association.candidates)
         self.state.visible[:] = False  # I_O is redefined by every scan (section IV-B)
         assignment = self._update(t, points, covs, directions, association)
         for j in association.rows(Decision.NEW):
@@ -467,6 +469,7 @@ class SensorBasedSlam:
                 t, points[j], covs[j], None if directions is None else directions[j]
             )
             assignment[j] = landmark_id
+            self.policy.sighted(landmark_id, t)
             if association.mode == "ids":
                 self.source_of[landmark_id] = int(scan.ids[j])
         for j, decision in enumerate(association.decisions):
