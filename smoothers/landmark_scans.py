@@ -169,7 +169,7 @@ class LandmarkScans:
         landmarks[matched] = [
             decided.candidates[int(i)].map_id for i in association.candidates[matched]
         ]
-        association = self.policy.decorrelated(association, scan.t, points, landmarks)
+        association = self.policy.decorrelated(association, scan.t, points, covariances, landmarks)
         if association.search is not None and association.search.truncated:
             self.recorder.event(scan.t, "jcbb_truncated", nodes=association.search.nodes)
         if decided.predictor is not None and self.config.innovation_nis:

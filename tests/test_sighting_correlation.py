@@ -135,18 +135,25 @@ def test_the_policy_inflates_a_landmark_seen_again_and_nothing_else():
     first = policy.by_ids(np.array([7, 8]), points, noise, np.array([7]), _NoPrediction())
     assert first.decisions == (Decision.MATCHED, Decision.NEW)
     # landmark 7 was never sighted before: its first use is not inflated
-    used = policy.decorrelated(first, 10.0, points, np.array([7, -1]))
+    used = policy.decorrelated(first, 10.0, points, noise, np.array([7, -1]))
     np.testing.assert_array_equal(used.noise, noise)
     policy.sighted(8, 10.0)
     second = policy.by_ids(np.array([7, 8]), points, noise, np.array([7, 8]), _NoPrediction())
-    used = policy.decorrelated(second, 10.5, points, np.array([7, 8]))
+    used = policy.decorrelated(second, 10.5, points, noise, np.array([7, 8]))
     for row in range(2):
         expected = MODEL.inflate(noise[row], points[row], 0.5)
         np.testing.assert_allclose(used.noise[row], expected)
     assert np.all(used.inflation == 1.0)  # not a gate inflation: no degradation counted
+    # a sighting outside the id gate keeps its gate inflation and adds its own growth
+    far = points + np.array([[2.0, 0.0], [0.0, 0.0]])
+    third = policy.by_ids(np.array([7, 8]), far, noise, np.array([7, 8]), _NoPrediction())
+    assert third.inflation[0] > 1.0
+    used = policy.decorrelated(third, 11.0, far, noise, np.array([7, 8]))
+    growth = MODEL.inflate(noise[0], far[0], 0.5) - noise[0]
+    np.testing.assert_allclose(used.noise[0], third.noise[0] + growth)
     # without a model nothing changes
     plain = AssociationPolicy(AssociationOptions(association="ids"), 2)
-    assert plain.decorrelated(second, 10.5, points, np.array([7, 8])) is second
+    assert plain.decorrelated(second, 10.5, points, noise, np.array([7, 8])) is second
 
 
 UTIAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"

@@ -327,7 +327,7 @@ class AghiliFilter:
         matched = association.rows(Decision.MATCHED)
         landmarks = np.full(k, -1, dtype=int)
         landmarks[matched] = map_ids[association.candidates[matched]]
-        association = self.policy.decorrelated(association, scan.t, points, landmarks)
+        association = self.policy.decorrelated(association, scan.t, points, R, landmarks)
         self._update(scan, points, R, association)
         R_after = self._measurement_noise(scan, k)
         for j, decision in enumerate(association.decisions):

@@ -248,15 +248,22 @@ class AssociationPolicy:
 
     # ------------------------------------------------------------------ correlation
     def decorrelated(
-        self, association: ScanAssociation, t: float, measured: np.ndarray, landmarks: np.ndarray
+        self,
+        association: ScanAssociation,
+        t: float,
+        measured: np.ndarray,
+        measured_cov: np.ndarray,
+        landmarks: np.ndarray,
     ) -> ScanAssociation:
         """The association with the noise of every matched sighting inflated for the time
         since the previous sighting of its landmark (module docstring; unchanged without a
         correlation model), and ``t`` [s] remembered as that landmark's latest sighting.
+        The inflation is that of the sighting's own covariance, added to whatever the id
+        gate already added.
 
         Args:
-            measured: (k, d) the sightings. landmarks: (k,) the map id each matched row is
-                paired with (other rows are ignored).
+            measured: (k, d) the sightings. measured_cov: (k, d, d) their own covariances.
+            landmarks: (k,) the map id each matched row is paired with (other rows ignored).
         """
         if self.correlation is None:
             return association
@@ -265,7 +272,9 @@ class AssociationPolicy:
             landmark = int(landmarks[j])
             previous = self._last_sighting.get(landmark)
             if previous is not None:
-                noise[j] = self.correlation.inflate(noise[j], measured[j], t - previous)
+                own = np.asarray(measured_cov[j], dtype=float)
+                grown = self.correlation.inflate(own, measured[j], t - previous) - own
+                noise[j] = noise[j] + grown
             self._last_sighting[landmark] = float(t)
         return replace(association, noise=noise)
 

@@ -268,7 +268,7 @@ class EkfSlam:
         matched = association.rows(AssociationDecision.MATCHED)
         landmarks = np.full(len(points), -1, dtype=int)
         landmarks[matched] = np.asarray(self.map_ids, dtype=int)[association.candidates[matched]]
-        association = self.policy.decorrelated(association, scan.t, points, landmarks)
+        association = self.policy.decorrelated(association, scan.t, points, noise, landmarks)
         if len(matched):
             self._update(scan.t, points[matched], noise[matched], association, matched)
         created: dict[int, int] = {}

@@ -461,7 +461,7 @@ class SensorBasedSlam:
 
         association = self._associate(t, scan.ids, points, covs, usable)
         # matched candidates are landmark ids here (``_associate``)
-        association = self.policy.decorrelated(association, t, points, association.candidates)
+        association = self.policy.decorrelated(association, t, points, covs, association.candidates)
         self.state.visible[:] = False  # I_O is redefined by every scan (section IV-B)
         assignment = self._update(t, points, covs, directions, association)
         for j in association.rows(Decision.NEW):
