@@ -11,7 +11,7 @@ robot (the issue asks ekf-slam and sensor-based for 2x or less).
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_utias_table.py [--robot 1 ...]
     [--estimator NAME ...] [--ids yes|no|both] [--duration SECONDS]
 The whole table (6 estimators x 5 robots x 2) took 31 min on one core beside a running
-suite (806 s with ids, 1058 s without; the smoothers' root-clique ordering made it about 2x faster).
+suite (806 s with ids, 1058 s without).
 """
 
 from __future__ import annotations
