@@ -7,7 +7,10 @@
    ``CustomFactor`` (``landmark_factor=cartesian``), same run.
 3. Fixed-lag time per keyframe with 1,000 versus 5,000 keyframes (flat if the window works).
 4. iSAM2 on the whole Victoria Park run (``--parts victoria``).
-5. Optionally (``--kitti``) iSAM2 on the whole kitti-imu-gps run, per fifth of the run.
+5. iSAM2 with the newest keyframe and the landmarks just seen kept in the root clique
+   (``smoothers.backends.eliminated_last``) against GTSAM's default elimination order, on
+   60 s of ``sim:aghili-rover``, alternating in one process (``--parts ordering``).
+6. Optionally (``--kitti``) iSAM2 on the whole kitti-imu-gps run, per fifth of the run.
 
 Usage: ``python benchmarks/bench_smoother.py [--quick] [--kitti]``.
 """
@@ -82,7 +85,7 @@ def main() -> None:
     parser.add_argument(
         "--parts",
         default="landmarks,factor,lag",
-        help="comma list of: landmarks, factor, lag, victoria",
+        help="comma list of: landmarks, factor, lag, victoria, ordering",
     )
     args = parser.parse_args()
     parts = set(args.parts.split(","))
@@ -96,8 +99,31 @@ def main() -> None:
         fixed_lag_growth(args.quick)
     if "victoria" in parts:
         victoria_park()
+    if "ordering" in parts:
+        root_ordering(rounds=1 if args.quick else 2)
     if args.kitti:
         kitti_growth()
+
+
+def root_ordering(rounds: int) -> None:
+    """The same iSAM2 run with the root-clique ordering and with GTSAM's default order."""
+    from smoothers import backends
+
+    print("== iSAM2 on sim:aghili-rover (60 s, seed 0): root-clique ordering vs GTSAM's order")
+    sequence = load_dataset("sim:aghili-rover", 0, {"duration_s": "60"})
+    ours = backends.eliminated_last
+    totals: dict[str, list[float]] = {"root ordering": [], "GTSAM order": []}
+    for _ in range(rounds):
+        for label, rule in (("root ordering", ours), ("GTSAM order", lambda keys: None)):
+            backends.eliminated_last = rule
+            try:
+                result = timed_run(SmootherIsam2, SmootherIsam2.Config(), sequence)
+            finally:
+                backends.eliminated_last = ours
+            summary(label, result)
+            totals[label].append(float(np.sum(result["per_keyframe"])))
+    ratio = np.median(totals["GTSAM order"]) / np.median(totals["root ordering"])
+    print(f"  keyframe time, GTSAM order over root ordering: {ratio:.2f}x")
 
 
 def victoria_park() -> None:
