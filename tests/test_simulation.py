@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 from pathlib import Path
@@ -552,3 +553,24 @@ def test_niche_depth_sets_the_closest_corner_separation() -> None:
     assert closest(deep) == pytest.approx(0.8)
     with pytest.raises(ValueError, match="niche depth"):
         ring_corridor_building(niche_depth_m=2.0)
+
+
+def test_folder_keeps_the_nested_noise_models(tmp_path):
+    """An odometry noise model and a sighting correlation model survive the folder format
+    (``dataclasses.asdict`` writes them as mappings; they came back as plain dicts)."""
+    from datasets.odometry_noise import OdometryNoiseModel
+    from datasets.sighting_correlation import Autocorrelation, SightingCorrelation
+
+    original = load_scenario("guerreiro-loop", 1, {"duration_s": "2"})
+    odometry = OdometryNoiseModel(np.arange(9.0).reshape(3, 3) * 1e-4, "fitted somewhere")
+    correlation = SightingCorrelation(Autocorrelation(0.9, 8.0), Autocorrelation(0.5, 3.0), "fit")
+    noisy = dataclasses.replace(
+        original,
+        noise=dataclasses.replace(
+            original.noise, odometry=odometry, sighting_correlation=correlation
+        ),
+    )
+    loaded = read_sequence_folder(write_sequence_folder(noisy, tmp_path / "noise")).noise
+    np.testing.assert_array_equal(loaded.odometry.rates, odometry.rates)
+    assert loaded.odometry.source == odometry.source
+    assert loaded.sighting_correlation == correlation
