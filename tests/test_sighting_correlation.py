@@ -151,9 +151,18 @@ def test_the_policy_inflates_a_landmark_seen_again_and_nothing_else():
     used = policy.decorrelated(third, 11.0, far, noise, np.array([7, 8]))
     growth = MODEL.inflate(noise[0], far[0], 0.5) - noise[0]
     np.testing.assert_allclose(used.noise[0], third.noise[0] + growth)
+    # one sighting matched after the scan's inflation ran (the smoothers' landmark created
+    # by an earlier scan of the same keyframe): grown for the time since landmark 8's
+    # latest sighting (11.0 s, the third scan), which it then becomes
+    grown = policy.correlated_noise(8, 11.25, points[1], noise[1], noise[1])
+    np.testing.assert_allclose(grown, MODEL.inflate(noise[1], points[1], 0.25))
+    again = policy.correlated_noise(8, 11.25, points[1], noise[1], noise[1])
+    np.testing.assert_allclose(again, MODEL.inflate(noise[1], points[1], 0.0))
     # without a model nothing changes
     plain = AssociationPolicy(AssociationOptions(association="ids"), 2)
     assert plain.decorrelated(second, 10.5, points, noise, np.array([7, 8])) is second
+    own = noise[1]
+    assert plain.correlated_noise(8, 10.75, points[1], own, own) is own
 
 
 UTIAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"

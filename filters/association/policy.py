@@ -269,14 +269,32 @@ class AssociationPolicy:
             return association
         noise = association.noise.copy()
         for j in association.rows(Decision.MATCHED):
-            landmark = int(landmarks[j])
-            previous = self._last_sighting.get(landmark)
-            if previous is not None:
-                own = np.asarray(measured_cov[j], dtype=float)
-                grown = self.correlation.inflate(own, measured[j], t - previous) - own
-                noise[j] = noise[j] + grown
-            self._last_sighting[landmark] = float(t)
+            noise[j] = self.correlated_noise(
+                int(landmarks[j]), t, measured[j], measured_cov[j], noise[j]
+            )
         return replace(association, noise=noise)
+
+    def correlated_noise(
+        self,
+        landmark: int,
+        t: float,
+        measured: np.ndarray,
+        measured_cov: np.ndarray,
+        noise: np.ndarray,
+    ) -> np.ndarray:
+        """``noise`` (d, d) of one sighting of map id ``landmark`` at ``t`` [s], grown by
+        the correlation model's inflation of its own covariance ``measured_cov`` for the
+        time since that landmark's previous sighting; ``t`` is remembered as its latest.
+        For a sighting matched after ``decorrelated`` ran (e.g. to a landmark created
+        from an earlier sighting of the same keyframe). Unchanged without a model."""
+        if self.correlation is None:
+            return noise
+        previous = self._last_sighting.get(landmark)
+        self._last_sighting[landmark] = float(t)
+        if previous is None:
+            return noise
+        own = np.asarray(measured_cov, dtype=float)
+        return noise + self.correlation.inflate(own, measured, t - previous) - own
 
     def sighted(self, landmark: int, t: float) -> None:
         """A new landmark ``landmark`` (map id) was created from a sighting at ``t`` [s]: the
