@@ -335,21 +335,39 @@ def _subset(windows: Windows, keep: np.ndarray) -> Windows:
 
 @dataclass(frozen=True)
 class ScaleFit:
-    """Odometry scale factors fitted to a reference (``fit_scales``).
+    """Odometry calibration factors fitted to a reference (``fit_scales``).
 
     Attributes:
         speed: multiplies the forward (and lateral) increments.
         turn: multiplies the heading increments.
+        coupling: speed lost per unit of commanded turn rate [s/rad]: the forward increments
+            are further multiplied by ``max(0, 1 - coupling * |omega|)``, with ``omega`` the
+            step's commanded (unscaled) turn rate.
         windows: windows used.
         heading_rms_before_rad, heading_rms_after_rad: RMS heading residual of the windows
-            with the raw and the scaled odometry [rad].
+            with the raw and the calibrated odometry [rad].
+        position_rms_before_m, position_rms_after_m: the same for the position [m].
     """
 
     speed: float
     turn: float
+    coupling: float
     windows: int
     heading_rms_before_rad: float
     heading_rms_after_rad: float
+    position_rms_before_m: float
+    position_rms_after_m: float
+
+
+SCALE_NAMES = ("speed", "turn", "coupling")
+_SCALE_BOUNDS = {"speed": (0.5, 2.0), "turn": (0.5, 2.0), "coupling": (0.0, 3.0)}
+_SCALE_NEUTRAL = {"speed": 1.0, "turn": 1.0, "coupling": 0.0}
+
+
+def speed_factors(turn_rates: np.ndarray, speed: float, coupling: float) -> np.ndarray:
+    """Per-sample factors of the forward speed, ``speed * max(0, 1 - coupling * |omega|)``
+    for commanded turn rates ``omega`` [rad/s] (``ScaleFit``)."""
+    return speed * np.clip(1.0 - coupling * np.abs(np.asarray(turn_rates, float)), 0.0, None)
 
 
 def fit_scales(
@@ -359,22 +377,33 @@ def fit_scales(
     reference_headings: np.ndarray,
     window_s: float,
     tolerance_s: float = 1e-6,
+    fixed: dict[str, float] | None = None,
 ) -> ScaleFit:
-    """Speed and turn scale factors ``(k_s, k_w)`` of commanded-velocity odometry: the
-    increments ``(k_s dx, k_s dy, k_w dtheta)`` whose composition over the windows of
-    ``window_bounds`` best matches the reference's relative poses.
+    """Calibration of commanded-velocity odometry: a speed factor ``k_s``, a turn factor
+    ``k_w`` and a speed-turn coupling ``c`` [s/rad], so that the increments
+    ``(f dx, f dy, k_w dtheta)`` with ``f = k_s max(0, 1 - c |dtheta / dt|)`` composed over
+    the windows of ``window_bounds`` best match the reference's relative poses. ``fixed``
+    holds the factors given (by name, ``SCALE_NAMES``); the others are fitted.
 
-    A systematic error that the noise model (variances linear in time, distance and turn)
-    cannot hold: on UTIAS dataset 1 the commanded turn rate overstates the turn by 4-7 % on
-    every robot (2-8 % in each half of each recording), and a white model spends that error
-    as noise that is in fact the same sign for minutes. The fit minimises the window residuals
-    (position [m] and heading [rad], each divided by its RMS with the raw odometry, so that
-    neither unit dominates) with a soft-L1 loss, which keeps a few glitched windows from
-    steering it (``scipy.optimize.least_squares``). Fit the scales first and the noise
-    model on the scaled odometry.
+    Systematic errors that the noise model (variances linear in time, distance and turn)
+    cannot hold, because they keep their sign for minutes: on UTIAS dataset 1 the commanded
+    turn rate overstates the turn by 4-7 % on every robot (2-8 % in each half of each
+    recording), and the commanded forward speed overstates the motion the more the robot
+    turns (Vicon over commanded speed, 1 s bins, all five robots: 1.02-1.03 below 0.05 rad/s,
+    0.88-0.91 at 0.05-0.15, 0.76-0.80 at 0.15-0.3, 0.59-0.62 at 0.3-0.6 rad/s). A white
+    model spends that error as noise. The fit minimises the window residuals (position [m]
+    and heading [rad], each divided by its RMS with the raw odometry, so that neither unit
+    dominates) with a soft-L1 loss, which keeps a few glitched windows from steering it
+    (``scipy.optimize.least_squares``). Fit the factors first and the noise model on the
+    calibrated odometry.
     """
     from scipy.optimize import least_squares
 
+    fixed = {name: float(value) for name, value in (fixed or {}).items()}
+    unknown = set(fixed) - set(SCALE_NAMES)
+    if unknown:
+        raise ValueError(f"fit_scales: unknown factors {sorted(unknown)}")
+    free = [name for name in SCALE_NAMES if name not in fixed]
     boundaries = window_bounds(increments, reference_t, window_s, tolerance_s)
     firsts = np.array([first for first, _ in boundaries])
     references = np.array([ref for _, ref in boundaries])
@@ -388,6 +417,7 @@ def fit_scales(
         )
     steps = slice(int(starts[0]), int(stops[-1]))
     values = increments.values[steps]
+    rates = values[:, 2] / np.maximum(np.abs(increments.dt[steps]), 1e-12)
     start_rotation = rot2_batch(reference_headings[ref_a])
     relative_position = np.einsum(
         "wji,wj->wi", start_rotation, reference_positions[ref_b] - reference_positions[ref_a]
@@ -395,14 +425,17 @@ def fit_scales(
     relative_heading = wrap_angle(reference_headings[ref_b] - reference_headings[ref_a])
     offsets = starts - starts[0]  # where each window's steps begin in ``values``
 
-    def residuals(scales: np.ndarray) -> np.ndarray:
-        speed, turn = scales
-        turns = turn * values[:, 2]
+    def factors(vector: np.ndarray) -> dict[str, float]:
+        return {**fixed, **dict(zip(free, map(float, vector)))}
+
+    def residuals(scales: dict[str, float]) -> np.ndarray:
+        turns = scales["turn"] * values[:, 2]
         total = np.cumsum(turns)
         # heading before each step, from its window's start frame (exactly 0 at the first)
         before = total - turns - np.repeat((total - turns)[offsets], stops - starts)
         cos, sin = np.cos(before), np.sin(before)
-        moved = speed * np.column_stack(
+        forward = speed_factors(rates, scales["speed"], scales["coupling"])
+        moved = forward[:, None] * np.column_stack(
             [cos * values[:, 0] - sin * values[:, 1], sin * values[:, 0] + cos * values[:, 1]]
         )
         end_position = np.add.reduceat(moved, offsets, axis=0)
@@ -411,20 +444,26 @@ def fit_scales(
             [relative_position - end_position, wrap_angle(relative_heading - end_heading)]
         )
 
-    raw = residuals(np.ones(2))
+    raw = residuals(dict(_SCALE_NEUTRAL))
     spread = np.array([np.sqrt(np.mean(raw[:, :2] ** 2))] * 2 + [np.sqrt(np.mean(raw[:, 2] ** 2))])
     spread = np.maximum(spread, 1e-12)
-    result = least_squares(
-        lambda scales: (residuals(scales) / spread).ravel(),
-        np.ones(2),
-        loss="soft_l1",
-        bounds=([0.5, 0.5], [2.0, 2.0]),
-    )
-    after = residuals(result.x)
+    chosen = dict(fixed)
+    if free:
+        result = least_squares(
+            lambda vector: (residuals(factors(vector)) / spread).ravel(),
+            np.array([_SCALE_NEUTRAL[name] for name in free]),
+            loss="soft_l1",
+            bounds=tuple(np.array([_SCALE_BOUNDS[name] for name in free]).T),
+        )
+        chosen = factors(result.x)
+    after = residuals(chosen)
     return ScaleFit(
-        float(result.x[0]),
-        float(result.x[1]),
+        chosen["speed"],
+        chosen["turn"],
+        chosen["coupling"],
         len(starts),
         float(np.sqrt(np.mean(raw[:, 2] ** 2))),
         float(np.sqrt(np.mean(after[:, 2] ** 2))),
+        float(np.sqrt(np.mean(np.sum(raw[:, :2] ** 2, axis=1)))),
+        float(np.sqrt(np.mean(np.sum(after[:, :2] ** 2, axis=1)))),
     )

@@ -6,10 +6,13 @@ the robot and surveyed landmark positions. Any MRCLAM dataset folder works (file
 ``Barcodes.dat``, ``Landmark_Groundtruth.dat``, ``RobotN_{Odometry,Measurement,Groundtruth}.dat``).
 
 What the stream contains (time-ordered; at equal times motion first, then the scan):
-- the odometry rows are the commanded velocities, multiplied by a speed and a turn-rate
-  factor fitted at load against the robot's Vicon (``odometry_speed_scale`` and
-  ``odometry_turn_scale``, ``fit`` by default; dataset 1: 0.91-0.94 and 0.93-0.96, both
-  overstated on every robot; ``metadata['odometry_scales']``), then:
+- the odometry rows are the commanded velocities, calibrated at load against the robot's
+  Vicon (``datasets.odometry_calibration.fit_scales``; ``metadata['odometry_scales']``): a
+  turn-rate factor (``odometry_turn_scale``), and a speed factor times
+  ``max(0, 1 - coupling |omega|)`` (``odometry_speed_scale``,
+  ``odometry_speed_turn_coupling``), all ``fit`` by default. Dataset 1 overstates the turn
+  by 4-7 % on every robot, and the speed the more the robot turns (by 40 % at 0.3-0.6
+  rad/s); then:
 - ``GyroSample(t, rate=[omega])`` for every odometry row (the rate input of gyro-driven
   estimators such as ``sensor-based``);
 - ``Odometry(t, velocity=[v, omega])`` for every odometry row; the sample at ``t`` is meant
@@ -64,10 +67,11 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat
+from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, PositiveFloat
 
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, LandmarkScan, Measurement, Odometry, Sensor
+from datasets.odometry_calibration import speed_factors
 from datasets.odometry_noise import OdometryNoiseModel, mean_heading_density, read_model_file
 from datasets.options import parse_options
 from datasets.range_bearing import convert
@@ -181,6 +185,13 @@ class UtiasOptions(BaseModel):
         description="calibration: multiply the angular velocity by this; 'fit' as for the speed "
         "(the commanded turn rate overstates the turn by 4-7 percent on every dataset-1 robot); 1 "
         "keeps the commanded rate",
+    )
+    odometry_speed_turn_coupling: NonNegativeFloat | Literal["fit"] = Field(
+        "fit",
+        description="calibration [s/rad]: the forward velocity is further multiplied by "
+        "max(0, 1 - coupling * |commanded turn rate|); 'fit' as for the speed (dataset 1: "
+        "Vicon over commanded speed 1.02-1.03 driving straight, 0.59-0.62 at 0.3-0.6 rad/s, "
+        "on every robot); 0 keeps the speed independent of the turn",
     )
 
 
@@ -393,7 +404,12 @@ def load_mrclam(
     vicon = (truth_t, truth_values[:, :2], full_heading)
     # scales first, then the noise model of the scaled odometry (fit_scales says why)
     scales = _odometry_scales(config, odo_t, odo_values, vicon, name)
-    odo_values = odo_values * np.array([scales["speed"], scales["turn"]])
+    odo_values = np.column_stack(
+        [
+            odo_values[:, 0] * speed_factors(odo_values[:, 1], scales["speed"], scales["coupling"]),
+            odo_values[:, 1] * scales["turn"],
+        ]
+    )
     odometry_model = _odometry_noise_model(config, odo_t, odo_values, vicon, name)
     # the whole recording's sightings: label swaps and the sighting correlation are judged
     # on all of them, as the odometry is calibrated
@@ -580,36 +596,48 @@ def _against_vicon(
 def _odometry_scales(
     config: UtiasOptions, odo_t: np.ndarray, odo_values: np.ndarray, vicon: tuple, name: str
 ) -> dict:
-    """The speed and turn-rate factors the odometry is multiplied by: as given, or ``fit``
+    """The calibration of the commanded velocities (``odometry_calibration.fit_scales``):
+    the speed and turn-rate factors and the speed-turn coupling, as given, or ``fit``
     against this robot's own Vicon over the whole recording (before ``duration_s`` trims
-    it, as the noise model), on windows of ``odometry_noise_window_s``. For the metadata:
-    both factors, where they came from and the heading RMS on the windows before and after."""
-    wanted = {"speed": config.odometry_speed_scale, "turn": config.odometry_turn_scale}
-    result: dict = {key: float(value) for key, value in wanted.items() if value != "fit"}
-    if len(result) == 2:
-        return {**result, "source": "given"}
+    it, as the noise model), on windows of ``odometry_noise_window_s``, with the given ones
+    held. For the metadata: the three values, where they came from and the heading and
+    position RMS on the windows before and after."""
+    wanted = {
+        "speed": config.odometry_speed_scale,
+        "turn": config.odometry_turn_scale,
+        "coupling": config.odometry_speed_turn_coupling,
+    }
+    given = {key: float(value) for key, value in wanted.items() if value != "fit"}
+    if len(given) == len(wanted):
+        return {**given, "source": "given"}
     from datasets.odometry_calibration import fit_scales
 
-    fit = _against_vicon(
-        fit_scales,
+    def fit(*args, **kwargs):
+        return fit_scales(*args, **kwargs, fixed=given)
+
+    result = _against_vicon(
+        fit,
         config,
         odo_t,
         odo_values,
         vicon,
-        f"{name}: odometry_speed_scale / odometry_turn_scale = fit",
+        f"{name}: odometry calibration = fit ({', '.join(sorted(set(wanted) - set(given)))})",
         "give the factors, e.g. --data odometry_turn_scale=1",
     )
-    fitted = {"speed": fit.speed, "turn": fit.turn}
-    given = "".join(f"; {key} given as {value:g}" for key, value in result.items())
+    held = "".join(f"; {key} given as {value:g}" for key, value in given.items())
     return {
-        **{key: result.get(key, fitted[key]) for key in ("speed", "turn")},
+        "speed": result.speed,
+        "turn": result.turn,
+        "coupling": result.coupling,
         "source": (
-            f"fitted at load against {name}'s Vicon truth ({fit.windows} windows of "
-            f"{config.odometry_noise_window_s:g} s): speed {fit.speed:.4f}, turn "
-            f"{fit.turn:.4f}{given}"
+            f"fitted at load against {name}'s Vicon truth ({result.windows} windows of "
+            f"{config.odometry_noise_window_s:g} s): speed {result.speed:.4f}, turn "
+            f"{result.turn:.4f}, speed-turn coupling {result.coupling:.3f} s/rad{held}"
         ),
-        "heading_rms_before_deg": float(np.rad2deg(fit.heading_rms_before_rad)),
-        "heading_rms_after_deg": float(np.rad2deg(fit.heading_rms_after_rad)),
+        "heading_rms_before_deg": float(np.rad2deg(result.heading_rms_before_rad)),
+        "heading_rms_after_deg": float(np.rad2deg(result.heading_rms_after_rad)),
+        "position_rms_before_m": result.position_rms_before_m,
+        "position_rms_after_m": result.position_rms_after_m,
     }
 
 

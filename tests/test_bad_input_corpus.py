@@ -113,6 +113,8 @@ def _utias(change: Callable[[Path], None] | None, robot: str = "robot1") -> Buil
             "--data",
             "odometry_turn_scale=1",
             "--data",
+            "odometry_speed_turn_coupling=0",
+            "--data",
             "sighting_correlation=none",
         ]
 

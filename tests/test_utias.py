@@ -35,6 +35,7 @@ RAW_ODOMETRY = dict(
     odometry_noise="white",
     odometry_speed_scale=1.0,
     odometry_turn_scale=1.0,
+    odometry_speed_turn_coupling=0.0,
     sighting_correlation="none",
 )
 
