@@ -19,7 +19,12 @@ from filters.ekf_slam.config import EkfSlamConfig
 from filters.ekf_slam.filter import EkfSlam
 from filters.ekf_slam.layout import VehicleLayout
 from filters.ekf_slam.motion import GyroNoise, VehicleMean, predict_gyro_cv, predict_odometry_2d
-from filters.ekf_slam.observation import initialise_landmark, predict_observations
+from filters.ekf_slam.observation import (
+    initialise_landmark,
+    observability_constrained,
+    predict_observations,
+    rotation_null_rows,
+)
 
 UTIAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"
 
@@ -498,3 +503,53 @@ def test_gyro_driven_runs_on_the_simulator_are_accurate_and_consistent(
         metrics["nees_pose_mean"] < 2.0 * pose_dof
     )  # a single short run: loose, but catches a broken covariance
     assert estimate.causal.block(BlockName.VELOCITY).frame == "world"
+
+
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_observability_constrained_jacobians_null_the_global_pose_with_the_least_change(
+    dimension: int,
+) -> None:
+    """OC-EKF (Huang et al. 2010): ``H* N = 0`` for the subspace at the latest prediction
+    and the landmarks' first estimates, ``H* = H`` where those agree with the current
+    estimates (which checks ``N`` against the finite-difference-tested ``H``), and a smaller
+    change of ``H`` than FEJ's, which meets the same constraint on one column only."""
+    rng = np.random.default_rng(30 + dimension)
+    layout = VehicleLayout(dimension, True, True)
+    mean = random_mean(layout, rng)
+    landmarks = rng.normal(size=(5, dimension)) * 4
+    _, vehicle_jac, landmark_jac = predict_observations(mean, layout, landmarks)
+    same_vehicle, same_landmark = observability_constrained(
+        layout, vehicle_jac, landmark_jac, mean.position, landmarks
+    )
+    np.testing.assert_allclose(same_vehicle, vehicle_jac, atol=1e-12)
+    np.testing.assert_allclose(
+        same_landmark, np.broadcast_to(landmark_jac, (5, dimension, dimension)), atol=1e-12
+    )
+    # first estimates up to a metre off, the prediction 0.3 m off: the EKF's usual case
+    first = landmarks + rng.normal(scale=0.6, size=landmarks.shape)
+    predicted_position = mean.position + rng.normal(scale=0.3, size=dimension)
+    constrained_vehicle, constrained_landmark = observability_constrained(
+        layout, vehicle_jac, landmark_jac, predicted_position, first
+    )
+    rotation_rows = layout.rotation_size
+    for row in range(len(landmarks)):
+        subspace = np.zeros((layout.size + dimension, dimension + rotation_rows))
+        subspace[layout.position, :dimension] = np.eye(dimension)
+        subspace[layout.position, dimension:] = rotation_null_rows(predicted_position[None])[0]
+        subspace[layout.rotation, dimension:] = np.eye(rotation_rows)
+        subspace[layout.size :, :dimension] = np.eye(dimension)
+        subspace[layout.size :, dimension:] = rotation_null_rows(first[row : row + 1])[0]
+        constrained = np.hstack([constrained_vehicle[row], constrained_landmark[row]])
+        original = np.hstack([vehicle_jac[row], landmark_jac])
+        np.testing.assert_allclose(constrained @ subspace, 0.0, atol=1e-12)
+        assert np.abs(original @ subspace).max() > 1e-3  # the unconstrained one violates it
+        # FEJ: the same constraint met by the rotation column alone
+        fej = predict_observations(
+            VehicleMean(predicted_position, mean.rotation, mean.velocity, mean.gyro_bias),
+            layout,
+            landmarks[row : row + 1],
+            first[row : row + 1],
+        )[1][0]
+        fej_jacobian = np.hstack([fej, landmark_jac])
+        np.testing.assert_allclose(fej_jacobian @ subspace, 0.0, atol=1e-12)
+        assert np.linalg.norm(constrained - original) <= np.linalg.norm(fej_jacobian - original)

@@ -45,11 +45,14 @@ class EkfSlamConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOption
     gyro_bias_sigma_rad_s: float | None = Field(
         None, ge=0, description="initial bias std; None: the dataset's NoiseSpec (else 0.01)"
     )
-    first_estimate_jacobians: bool = Field(
-        True,
-        description="with odometry input: FEJ-EKF (Huang, Mourikis, Roumeliotis 2008): each "
-        "landmark's Jacobian at its first estimate, the propagation's at the previous prediction, "
-        "so the filter gains no information along the unobservable global pose; false: standard EKF",
+    jacobians: Literal["observability-constrained", "first-estimate", "standard"] = Field(
+        "observability-constrained",
+        description="with odometry input, how the filter keeps from gaining information along "
+        "the unobservable global pose: 'observability-constrained' (OC-EKF, Huang, Mourikis, "
+        "Roumeliotis 2010: each measurement Jacobian at the current estimates, projected to "
+        "H N = 0), 'first-estimate' (FEJ-EKF, Huang et al. 2008: each landmark's Jacobian at "
+        "its first estimate; UTIAS robot 5 diverges with it), 'standard' (the textbook, "
+        "inconsistent EKF); both constrained forms propagate with FEJ's transition Jacobian",
     )
     odometry_noise_scale: float = Field(
         1.0, gt=0, description="multiplies the odometry covariance of the data"

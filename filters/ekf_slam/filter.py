@@ -68,7 +68,11 @@ from filters.ekf_slam.motion import (
     predict_odometry_2d,
     predict_odometry_3d,
 )
-from filters.ekf_slam.observation import initialise_landmark, predict_observations
+from filters.ekf_slam.observation import (
+    initialise_landmark,
+    observability_constrained,
+    predict_observations,
+)
 
 
 class EkfSlam:
@@ -127,8 +131,10 @@ class EkfSlam:
         self.sightings: list[int] = []
         self.created_t: list[float] = []
         self.next_id = 0
-        # FEJ (odometry input only): landmarks' first estimates, and the last prediction
-        self.fej = config.first_estimate_jacobians and self.input is Sensor.ODOMETRY
+        # the observability constraint (odometry input only; config.jacobians): landmarks'
+        # first estimates, and the last prediction
+        self.jacobians = config.jacobians if self.input is Sensor.ODOMETRY else "standard"
+        self.fej = self.jacobians != "standard"  # FEJ's propagation Jacobian, both forms
         self.first_landmarks = np.zeros((0, d))
         self.predicted_position = np.asarray(start.position, float).copy()
         self.t = float(start.t)
@@ -298,12 +304,25 @@ class EkfSlam:
             )
 
     def predict(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``predict_observations`` of map landmarks ``indices``, with FEJ Jacobians when on."""
-        return predict_observations(
+        """``predict_observations`` of map landmarks ``indices`` with the configured
+        Jacobians: predicted (m, d), vehicle Jacobians (m, d, n_v), landmark Jacobians
+        (m, d, d)."""
+        indices = np.asarray(indices, dtype=int)
+        first = self.first_landmarks[indices]
+        predicted, vehicle_jac, landmark_jac = predict_observations(
             self.vehicle,
             self.layout,
             self.landmarks[indices],
-            self.first_landmarks[indices] if self.fej else None,
+            first if self.jacobians == "first-estimate" else None,
+        )
+        if self.jacobians == "observability-constrained":
+            return predicted, *observability_constrained(
+                self.layout, vehicle_jac, landmark_jac, self.predicted_position, first
+            )
+        return (
+            predicted,
+            vehicle_jac,
+            np.broadcast_to(landmark_jac, vehicle_jac.shape[:2] + (vehicle_jac.shape[1],)),
         )
 
     def observation_jacobian(self, indices: np.ndarray) -> tuple[np.ndarray, kalman.SparseJacobian]:
@@ -317,7 +336,7 @@ class EkfSlam:
         values = np.zeros((n * d, v + n * d))
         values[:, :v] = vehicle_jac.reshape(n * d, v)
         for row in range(n):
-            values[row * d : row * d + d, v + row * d : v + row * d + d] = landmark_jac
+            values[row * d : row * d + d, v + row * d : v + row * d + d] = landmark_jac[row]
         return predicted, kalman.SparseJacobian(columns, values)
 
     def _update(
@@ -481,8 +500,9 @@ class _MapPredictor:
         cross = P[:v][:, rows].transpose(1, 0, 2)  # (n, v, d): cov(vehicle, landmark)
         own = P[rows[:, :, None], rows[:, None, :]]  # (n, d, d)
         blocks = vehicle_jac @ P[:v, :v] @ np.swapaxes(vehicle_jac, 1, 2)
-        mixed = vehicle_jac @ cross @ landmark_jac.T
-        blocks = blocks + mixed + np.swapaxes(mixed, 1, 2) + landmark_jac @ own @ landmark_jac.T
+        landmark_t = np.swapaxes(landmark_jac, 1, 2)  # (n, d, d): one per landmark
+        mixed = vehicle_jac @ cross @ landmark_t
+        blocks = blocks + mixed + np.swapaxes(mixed, 1, 2) + landmark_jac @ own @ landmark_t
         return predicted, blocks
 
     def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
