@@ -9,7 +9,7 @@ The last lines give each estimator's ATE over the batch smoother's smoothed ATE 
 robot (the issue asks ekf-slam and sensor-based for 2x or less).
 
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_utias_table.py [--robot 1 ...]
-    [--estimator NAME ...] [--ids yes|no|both] [--duration SECONDS]
+    [--estimator NAME ...] [--ids yes|no|both] [--duration SECONDS] [--data KEY=VALUE ...]
 The whole table (6 estimators x 5 robots x 2) took 31 min on one core beside a running
 suite (806 s with ids, 1058 s without).
 """
@@ -55,6 +55,9 @@ def main() -> None:
     parser.add_argument("--estimator", action="append", default=[])
     parser.add_argument("--ids", choices=("yes", "no", "both"), default="both")
     parser.add_argument("--duration", type=float, default=None, help="seconds of each run")
+    parser.add_argument(
+        "--data", action="append", default=[], help="a loader option KEY=VALUE (repeatable)"
+    )
     args = parser.parse_args()
     if not DATA.is_dir():
         raise SystemExit(f"{DATA}: UTIAS MRCLAM dataset 1 not found")
@@ -66,7 +69,8 @@ def main() -> None:
     started = time.perf_counter()
     for ids in id_modes:
         for robot in robots:
-            options = {"ids": str(ids).lower()}
+            options = dict(item.split("=", 1) for item in args.data)
+            options["ids"] = str(ids).lower()
             if args.duration:
                 options["duration_s"] = str(args.duration)
             dataset = f"utias:{DATA}#robot{robot}"
