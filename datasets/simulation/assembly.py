@@ -14,7 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
+from datasets.measurements import (
+    GyroSample,
+    ImuSample,
+    LandmarkScan,
+    Measurement,
+    Odometry,
+    Sensor,
+)
 from datasets.rotations import quat_wxyz_from_matrix, rot2, so3_exp, wrap_angle
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.simulation.imu import ImuSeries
@@ -35,6 +42,23 @@ def sample_times(duration_s: float, rate_hz: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class OdometrySeries:
+    """Planar relative-pose odometry: the increment over ``(t[k] - dt[k], t[k]]``.
+
+    Attributes:
+        t: end time of each increment [s], (n,).
+        dt: its duration [s], (n,).
+        increments: measured (dx, dy, dtheta) in the previous body frame [m, m, rad], (n, 3).
+        covariance: the stated covariance of every increment, (3, 3).
+    """
+
+    t: np.ndarray
+    dt: np.ndarray
+    increments: np.ndarray
+    covariance: np.ndarray
+
+
+@dataclass(frozen=True)
 class SimulatedData:
     """Everything a scenario simulated, before it becomes a ``Sequence``.
 
@@ -44,6 +68,7 @@ class SimulatedData:
         scans: landmark scans (true ids inside).
         landmark_ids: true ids (L,); landmark_positions: world positions (L, d).
         anchor_order: landmark row indices ordered for anchor use (L,).
+        odometry: relative-pose odometry, or None (the default: no odometry).
     """
 
     kinematics: Kinematics
@@ -52,6 +77,7 @@ class SimulatedData:
     landmark_ids: np.ndarray
     landmark_positions: np.ndarray
     anchor_order: np.ndarray
+    odometry: OdometrySeries | None = None
 
 
 def _inertial_samples(data: SimulatedData) -> list[Measurement]:
@@ -81,13 +107,38 @@ def _scan_measurements(scans: ScanSeries, with_ids: bool) -> list[Measurement]:
     ]
 
 
+def _odometry_measurements(odometry: OdometrySeries | None) -> list[Measurement]:
+    if odometry is None:
+        return []
+    return [
+        Odometry(
+            t=float(t),
+            covariance=odometry.covariance.copy(),
+            relative_pose=odometry.increments[i].copy(),
+            dt=float(odometry.dt[i]),
+        )
+        for i, t in enumerate(odometry.t)
+    ]
+
+
 def merged_stream(data: SimulatedData, with_ids: bool) -> Iterator[Measurement]:
-    """Inertial samples and scans merged by time, inertial first at equal times."""
+    """Inertial samples, odometry and scans merged by time, in that order at equal times."""
     inertial_times, scan_times = data.kinematics.t, data.scans.t
-    keys = np.concatenate([inertial_times, scan_times])
-    priority = np.concatenate([np.zeros(len(inertial_times)), np.ones(len(scan_times))])
+    odometry_times = np.zeros(0) if data.odometry is None else data.odometry.t
+    keys = np.concatenate([inertial_times, odometry_times, scan_times])
+    priority = np.concatenate(
+        [
+            np.zeros(len(inertial_times)),
+            np.full(len(odometry_times), 0.5),
+            np.ones(len(scan_times)),
+        ]
+    )
     order = np.lexsort((priority, keys))
-    measurements = _inertial_samples(data) + _scan_measurements(data.scans, with_ids)
+    measurements = (
+        _inertial_samples(data)
+        + _odometry_measurements(data.odometry)
+        + _scan_measurements(data.scans, with_ids)
+    )
     for index in order:
         yield measurements[index]
 
@@ -197,7 +248,10 @@ def build_sequence(
     return Sequence(
         name=name,
         dimension=kinematics.dimension,
-        sensors=frozenset({Sensor.GYRO if planar else Sensor.IMU, Sensor.LANDMARKS}),
+        sensors=frozenset(
+            {Sensor.GYRO if planar else Sensor.IMU, Sensor.LANDMARKS}
+            | ({Sensor.ODOMETRY} if data.odometry is not None else set())
+        ),
         stream=lambda: merged_stream(data, with_ids),
         ground_truth=truth,
         noise=noise,

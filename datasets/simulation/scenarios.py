@@ -25,8 +25,14 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.options import describe_model, parse_options
+from datasets.rotations import wrap_angle
 from datasets.sequence import NoiseSpec, Sequence
-from datasets.simulation.assembly import SimulatedData, build_sequence, sample_times
+from datasets.simulation.assembly import (
+    OdometrySeries,
+    SimulatedData,
+    build_sequence,
+    sample_times,
+)
 from datasets.simulation.floor_plan import ring_corridor_building
 from datasets.simulation.imu import (
     KITTI_IMU_METADATA,
@@ -49,6 +55,7 @@ from datasets.simulation.landmarks import (
 )
 from datasets.simulation.trajectories import (
     CircleMotion,
+    Kinematics,
     LateralDrift,
     PlanarPathMotion,
     RandomSpeed,
@@ -213,6 +220,19 @@ class GuerreiroLoopOptions(_CommonOptions):
     direction_sigma_deg: float = Field(
         2.0, ge=0, description="std of the wall direction angle noise [deg] (the paper states none)"
     )
+    odometry: bool = Field(
+        False,
+        description="also wheel odometry (not in the paper, which has none): the true relative pose "
+        "between consecutive gyro samples (previous body frame) plus white noise of "
+        "odometry_sigma_m on dx and dy and odometry_sigma_rad on dtheta, stated exactly "
+        "(model-matched relative-pose odometry, for the estimators' odometry mode)",
+    )
+    odometry_sigma_m: float = Field(
+        0.005, ge=0, description="std of dx and dy of each odometry increment [m]"
+    )
+    odometry_sigma_rad: float = Field(
+        0.002, ge=0, description="std of dtheta of each odometry increment [rad]"
+    )
 
 
 def _noise_factors(noise_scale: float) -> tuple[float, float]:
@@ -223,7 +243,7 @@ def _noise_factors(noise_scale: float) -> tuple[float, float]:
 def _generators(seed: int) -> dict[str, np.random.Generator]:
     """Independent generators per purpose, all from ``seed``."""
     # spawn keys are indices: adding a name at the end leaves the others' streams unchanged
-    names = ("inertial", "landmarks", "spare", "initial", "motion", "drift")
+    names = ("inertial", "landmarks", "spare", "initial", "motion", "drift", "odometry")
     children = np.random.SeedSequence(seed).spawn(len(names))
     return {name: np.random.default_rng(child) for name, child in zip(names, children)}
 
@@ -481,6 +501,32 @@ def guerreiro_loop_motion(
     )
 
 
+def relative_pose_odometry(
+    kinematics: Kinematics,
+    sigmas: np.ndarray,
+    drawn: float,
+    stated: float,
+    rng: np.random.Generator,
+) -> OdometrySeries:
+    """Planar relative-pose odometry between consecutive truth samples: the true
+    ``(dx, dy) = R_k^T (p_{k+1} - p_k)``, ``dtheta = theta_{k+1} - theta_k`` plus white noise
+    of std ``sigmas * drawn`` (dx, dy, dtheta), stated as ``diag(sigmas * stated)^2``. The
+    estimators compose ``p' = p + R u_xy``, ``theta' = theta + u_theta``, which is linear in
+    the increment: the noise model is exactly theirs."""
+    rotation = kinematics.rotation
+    steps = np.einsum("kji,kj->ki", rotation[:-1], np.diff(kinematics.position, axis=0))
+    headings = np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])
+    turns = wrap_angle(np.diff(headings))
+    true = np.column_stack([steps, turns])
+    measured = true + rng.standard_normal(true.shape) * (np.asarray(sigmas) * drawn)
+    return OdometrySeries(
+        t=kinematics.t[1:].copy(),
+        dt=np.diff(kinematics.t),
+        increments=measured,
+        covariance=np.diag((np.asarray(sigmas, float) * stated) ** 2),
+    )
+
+
 def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     """Guerreiro, Batista, Silvestre, Oliveira, "Globally Asymptotically Stable Sensor-Based
     SLAM", section V: a planar vehicle flies about 60 m round a ring corridor at 0.4 m/s on
@@ -493,7 +539,8 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     beyond), which is a conservative tuning, not the laser. Drawn in range and bearing
     (``landmark_noise``) and converted by the unbiased converted measurement
     (``landmark_conversion``, ``datasets.range_bearing``). A rate gyro at the laser rate
-    with bias (walk 5.7e-5 deg/s/sqrt(s) as the paper's sigma_br) and MEMS white noise. No odometry. With ``directions=true`` each observed corner also carries the
+    with bias (walk 5.7e-5 deg/s/sqrt(s) as the paper's sigma_br) and MEMS white noise. No
+    odometry unless ``odometry=true`` (``relative_pose_odometry``, not in the paper). With ``directions=true`` each observed corner also carries the
     body-frame unit directions of its two walls (the paper's direction landmarks), each
     rotated by N(0, direction_sigma_deg^2) noise.
     """
@@ -590,8 +637,21 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
         landmark_ids=np.arange(len(plan.corners)),
         landmark_positions=plan.corners,
         anchor_order=anchor_order(plan.corners, visible_at_start, scan_kinematics.position[0]),
+        odometry=(
+            relative_pose_odometry(
+                kinematics,
+                np.array([options.odometry_sigma_m] * 2 + [options.odometry_sigma_rad]),
+                drawn,
+                stated,
+                generators["odometry"],
+            )
+            if options.odometry
+            else None
+        ),
     )
     rates = {"gyro": options.gyro_rate_hz, "landmarks": options.landmark_rate_hz}
+    if options.odometry:
+        rates["odometry"] = options.gyro_rate_hz
     noise = _noise_spec(
         nominal.scaled(stated), laser.near_range_sigma_m * stated, rates, True, options
     )
