@@ -30,11 +30,15 @@ def _shortened(spec, duration_s: str):
 def calibration_table(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, str]]:
     out = tmp_path_factory.mktemp("calibration")
     full = get_suite("calibration")
-    circle, loop = full.datasets
+    circle, loop, odometry_loop = full.datasets
     suite = replace(
         full,
         name="calibration-small",
-        datasets=(_shortened(circle, "5"), _shortened(loop, "10")),
+        datasets=(
+            _shortened(circle, "5"),
+            _shortened(loop, "10"),
+            _shortened(odometry_loop, "10"),
+        ),
         default_runs=RUNS,
     )
     backend = LocalBackend(2)
