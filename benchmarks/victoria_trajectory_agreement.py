@@ -3,8 +3,8 @@ the batch smoother's? (Issue 14 asks ekf-slam for 10 m RMS or less on the full r
 
 Victoria Park has no ground truth, so the batch smoother's smoothed trajectory is the
 reference. Each estimator's trajectory (its causal one; the sensor-based filter's derived
-Earth-frame pose) is interpolated at the reference's keyframe times and compared after an
-SE(2) alignment (Umeyama). Printed with each run: the fractions of sightings rejected and
+Earth-frame pose) is scored against it by the workbench's own ATE (``ate_report``: poses
+paired by nearest time, SE(2) alignment). Printed with each run: the fractions of sightings rejected and
 inflated by the id gate (``workbench.metrics.summary``), so that a close trajectory cannot
 hide a silent gate.
 
@@ -19,9 +19,7 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
-
-from workbench.metrics.alignment import umeyama
+from workbench.metrics.ate import ate_report
 from workbench.metrics.summary import compute_metrics
 from workbench.registry import estimator_entry, load_dataset
 from workbench.runner import resolve_config, run_estimator
@@ -33,18 +31,6 @@ DEFAULT_ESTIMATORS = (
     "smoother-isam2",
     "smoother-fixed-lag",
 )
-
-
-def aligned_rms(times: np.ndarray, positions: np.ndarray, reference) -> float:
-    """SE(2)-aligned RMS [m] of ``positions`` (n, 2) at ``times`` against the reference
-    trajectory, at the reference's times inside ``times``."""
-    inside = (reference.t >= times[0]) & (reference.t <= times[-1])
-    at = reference.t[inside]
-    moved = np.column_stack([np.interp(at, times, positions[:, k]) for k in range(2)])
-    target = reference.positions[inside, :2]
-    rotation, translation, _ = umeyama(moved, target)
-    aligned = moved @ rotation.T + translation
-    return float(np.sqrt(np.mean(np.sum((aligned - target) ** 2, axis=1))))
 
 
 def run(name: str, sequence, overrides: dict[str, str]):
@@ -80,7 +66,7 @@ def main() -> None:
     for name in args.estimator or DEFAULT_ESTIMATORS:
         estimate, seconds = run(name, sequence, overrides.get(name, {}))
         pose = estimate.causal.pose
-        rms = aligned_rms(pose.t, pose.positions[:, :2], reference_pose)
+        rms = ate_report(reference_pose, pose, align="se2")["rmse_m"]
         metrics = compute_metrics(estimate, sequence)
         rejected = metrics.get("association_rejected_fraction")
         inflated = metrics.get("association_inflated_fraction")

@@ -63,6 +63,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Literal
 
@@ -612,11 +613,8 @@ def _odometry_scales(
         return {**given, "source": "given"}
     from datasets.odometry_calibration import fit_scales
 
-    def fit(*args, **kwargs):
-        return fit_scales(*args, **kwargs, fixed=given)
-
     result = _against_vicon(
-        fit,
+        partial(fit_scales, fixed=given),
         config,
         odo_t,
         odo_values,

@@ -184,15 +184,10 @@ class LandmarkScans:
                 landmark = self._unsolved_with_id(scan, index, association)
                 if landmark is not None:
                     decision = AssociationDecision.MATCHED
-                    if self.policy.correlation is not None:
-                        # correlated with the sighting that created it moments ago
-                        association.noise[index] = self.policy.correlated_noise(
-                            landmark.map_id,
-                            scan.t,
-                            point,
-                            covariances[index],
-                            association.noise[index],
-                        )
+                    # correlated with the sighting that created it moments ago
+                    association.noise[index] = self.policy.correlated_noise(
+                        landmark.map_id, scan.t, point, covariances[index], association.noise[index]
+                    )
                 else:
                     returning = association.mode == "ids" and int(scan.ids[index]) in self.departed
                     landmark = self._map_new(k, scan, index, pose, point, association)

@@ -134,7 +134,7 @@ class EkfSlam:
         # the observability constraint (odometry input only; config.jacobians): landmarks'
         # first estimates, and the last prediction
         self.jacobians = config.jacobians if self.input is Sensor.ODOMETRY else "standard"
-        self.fej = self.jacobians != "standard"  # FEJ's propagation Jacobian, both forms
+        self.fej_propagation = self.jacobians != "standard"  # both constrained forms
         self.first_landmarks = np.zeros((0, d))
         self.predicted_position = np.asarray(start.position, float).copy()
         self.t = float(start.t)
@@ -199,7 +199,7 @@ class EkfSlam:
                 increment,
                 increment_cov * self.config.odometry_noise_scale,
             )
-            if self.fej:
+            if self.fej_propagation:
                 # Huang et al. (2008), eq. (25): the rotation column at the previous
                 # prediction p_{k|k-1} instead of the updated p_{k|k} (3-D: the same with the
                 # world-frame rotation error, -[p' - p]x)
@@ -319,11 +319,8 @@ class EkfSlam:
             return predicted, *observability_constrained(
                 self.layout, vehicle_jac, landmark_jac, self.predicted_position, first
             )
-        return (
-            predicted,
-            vehicle_jac,
-            np.broadcast_to(landmark_jac, vehicle_jac.shape[:2] + (vehicle_jac.shape[1],)),
-        )
+        d = self.dimension
+        return predicted, vehicle_jac, np.broadcast_to(landmark_jac, (len(indices), d, d))
 
     def observation_jacobian(self, indices: np.ndarray) -> tuple[np.ndarray, kalman.SparseJacobian]:
         """Predicted observations (n, d) of map landmarks ``indices`` and the stacked ``H``
