@@ -229,10 +229,13 @@ def test_sources_give_every_estimator_the_same_result(runs) -> None:
     """Each estimator's poses agree across the sources by frame index. The bags' stamps are
     epoch seconds (1.317e9 s), which float64 resolves to 2.4e-7 s only, so the scans' time
     steps and the bags' differ by up to 1.9e-7 s; the sensor-based filter integrates its
-    velocity state over each step and moves by 0.21 mm over the clip (the same scans read
-    with epoch stamps from a ``timestamps`` file reproduce the bags' result to 1e-15 m).
-    The others do not use the step lengths and agree to 1e-14 m."""
-    tolerance_m = {"sensor-based": 1e-3}
+    velocity state over each step, and its innovations drift apart from the first scans on
+    (no discrete decision flips: NIS differences 1e-4 at the second scan, 2 at the last),
+    5.9 mm over the clip with the odometry covariance fitted from re-observations (0.21 mm
+    with the stated constant one; the same scans read with epoch
+    stamps from a ``timestamps`` file reproduce the bags' result to 1e-15 m). The others
+    do not use the step lengths and agree to 1e-14 m."""
+    tolerance_m = {"sensor-based": 1e-2}
     for estimator in LIDAR_ONLY:
         reference = runs["scans"]["poses"][estimator]
         for source in ("ros1", "ros2"):

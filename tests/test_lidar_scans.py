@@ -172,11 +172,13 @@ def test_on_the_real_kitti_clip_the_default_front_end_is_kiss_icp_alone() -> Non
     sequence, source = scans_sequence(str(clip), ScanFolderOptions())
     for _ in sequence.measurements():
         pass
-    assert sequence.metadata["kiss_icp"] == {
+    resolved = sequence.metadata["kiss_icp"]
+    assert {key: resolved[key] for key in ("max_range_m", "voxel_size_m", "max_range_source")} == {
         "max_range_m": 100.0,
         "voxel_size_m": 1.0,
         "max_range_source": "KISS-ICP default (first scan's 99.9th range percentile 78.2 m)",
     }
+    assert resolved["kiss_icp_covariance_source"].startswith("re-observations")
     config = KISSConfig()
     config.mapping.voxel_size = config.data.max_range / 100.0  # KISS-ICP's pipeline rule
     alone = KissICP(config)

@@ -19,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from datasets.errors import InputError
 from datasets.lidar.corner_tracking import CornerTracker
 from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, extract_corners
+from datasets.lidar.increment_noise import IncrementNoiseFit
 from datasets.lidar.kiss_icp_odometry import (
     KissIcpOdometry,
     KissIcpSettings,
@@ -131,6 +132,9 @@ class LidarFrontEnd:
         self.frames: list[FrontEndFrame] = []
         self._odometry = KissIcpOdometry(settings.kiss) if settings.odometry else None
         self.tracker = CornerTracker()
+        self.increment_noise = IncrementNoiseFit(
+            settings.kiss.rotation_sigma_rad, settings.kiss.translation_sigma_m
+        )
 
     def frame(self, index: int, cloud: PointCloud) -> FrontEndFrame:
         """The result for the ``index``-th cloud (computed once, then cached)."""
@@ -160,11 +164,22 @@ class LidarFrontEnd:
             corners = _select(corners, np.zeros(len(corners.points), dtype=bool))
         if corners is not None and pose is not None and len(corners.points):
             d = corners.points.shape[1]
+            seen = len(self.tracker.stats.pairs)
             confirmed = self.tracker.confirm(
                 len(self.frames), pose[:d, :d], pose[:d, 3], corners.points, corners.covariances
             )
             if self.settings.confirm_corners:
                 corners = _select(corners, confirmed)
+            if self.settings.kiss.covariance == "re-observations":
+                frames = self.frames
+                self.increment_noise.update(
+                    len(frames),
+                    self.tracker.stats.pairs[seen:],
+                    lambda k: pose if k == len(frames) else frames[k].pose,
+                )
+        if odometry is not None and self.settings.kiss.covariance == "re-observations":
+            # this frame's increment, with the fit over the re-observations up to this frame
+            odometry = replace(odometry, covariance=self.increment_noise.current.covariance())
         result = FrontEndFrame(
             cloud.t,
             t,
@@ -192,8 +207,9 @@ class LidarFrontEnd:
         return extract_corners(points, config)
 
     def resolved(self) -> dict[str, float | str]:
-        """What KISS-ICP runs with, for the run's metadata: max range and voxel [m] and
-        where the range came from (empty before the first scan or without odometry)."""
+        """What KISS-ICP runs with, for the run's metadata: max range and voxel [m], where
+        the range came from, and the covariance of its increments at the last frame (empty
+        before the first scan or without odometry)."""
         settings = self.kiss_settings
         if settings is None or settings.max_range_m is None or not self.frames:
             return {}
@@ -202,6 +218,7 @@ class LidarFrontEnd:
             "max_range_m": float(settings.max_range_m),
             "voxel_size_m": float(voxel),
             "max_range_source": self._odometry.range_source,
+            **self.increment_noise.current.summary(),
         }
 
     @property

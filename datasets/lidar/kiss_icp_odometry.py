@@ -9,13 +9,15 @@ resulting pose with the time of the latest point, ``t + max(point_times)``.
 
 Output: the pose of each frame (body = lidar frame, world = the first frame's body frame),
 as a ``Trajectory``, and relative poses between consecutive frames as ``Odometry``
-measurements ``(rotation vector, translation)`` in the previous body frame, with a fixed
-per-frame covariance from the config (KISS-ICP itself reports none).
+measurements ``(rotation vector, translation)`` in the previous body frame, with the stated
+per-frame covariance of the settings (KISS-ICP itself reports none; the front end replaces it
+by the one fitted from corner re-observations, ``datasets.lidar.increment_noise``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -52,11 +54,21 @@ class KissIcpSettings(BaseModel):
         "1: bit-identical results on every machine; on the real KITTI clip the two differ by "
         "4e-15 m)",
     )
+    covariance: Literal["re-observations", "stated"] = Field(
+        "re-observations",
+        description="covariance of a frame-to-frame odometry: fitted frame by frame from the "
+        "corners the front end re-observes (datasets.lidar.increment_noise; the stated sigmas "
+        "until the fit has evidence), or the stated sigmas throughout",
+    )
     rotation_sigma_rad: float = Field(
-        0.002, gt=0, description="std of each rotation component of a frame-to-frame odometry [rad]"
+        0.002,
+        gt=0,
+        description="stated std of each rotation component of a frame-to-frame odometry [rad]",
     )
     translation_sigma_m: float = Field(
-        0.02, gt=0, description="std of each translation component of a frame-to-frame odometry [m]"
+        0.02,
+        gt=0,
+        description="stated std of each translation component of a frame-to-frame odometry [m]",
     )
 
     def kiss_config(self):

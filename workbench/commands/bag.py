@@ -139,6 +139,9 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
         # corners found again where they were (KISS-ICP's poses), and how far they moved
         # against their covariances (datasets.lidar.corner_tracking)
         **front_end.tracker.stats.summary(),
+        # the covariance of KISS-ICP's increments at the last frame, and the fit behind it
+        # (datasets.lidar.increment_noise)
+        **front_end.increment_noise.current.summary(),
     }
     truth = sequence.ground_truth.pose if sequence.ground_truth is not None else None
     trajectory = front_end.trajectory()
@@ -256,6 +259,20 @@ def bag_command(
         typer.echo(
             f"front end: KISS-ICP max range {resolved['max_range_m']:g} m "
             f"({resolved['max_range_source']}), voxel {resolved['voxel_size_m']:g} m",
+            err=True,
+        )
+    if source.front_end.settings.odometry:
+        noise = source.front_end.increment_noise.current
+        fitted = (
+            ""
+            if noise.estimate is None
+            else f"; fitted {1e3 * np.sqrt(noise.estimate[0]):.2g} mrad / "
+            f"{1e3 * np.sqrt(noise.estimate[1]):.2g} mm"
+        )
+        typer.echo(
+            f"front end: KISS-ICP increment sigma {1e3 * np.sqrt(noise.rotation_variance):.2g} "
+            f"mrad / {1e3 * np.sqrt(noise.translation_variance):.2g} mm per frame at the end "
+            f"({noise.source}{fitted})",
             err=True,
         )
     write_atomic(front_dir / "metrics.json", dump_json(front))
