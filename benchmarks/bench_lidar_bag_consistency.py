@@ -13,7 +13,7 @@ per-frame NEES, and the corners' error against their stated covariance. These ar
 every estimator shares, so they say what the cells can be expected to read.
 
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_lidar_bag_consistency.py [--runs 10]
-    [--duration 8] [--estimator NAME ...]
+    [--duration 8] [--estimator NAME ...] [--data KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.bags.source import BagOptions, bag_sequence
+from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
 from datasets.lidar.corner_truth import interpolate_poses, with_true_corner_ids
 from datasets.measurements import LandmarkScan, Odometry
 from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
@@ -92,6 +92,12 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=10)
     parser.add_argument("--duration", type=float, default=8.0, help="bag length [s]")
     parser.add_argument("--estimator", action="append", default=[])
+    parser.add_argument(
+        "--data",
+        action="append",
+        default=[],
+        help="bag option KEY=VALUE (e.g. kiss.covariance=stated)",
+    )
     args = parser.parse_args()
     names = tuple(args.estimator) or tuple(entry.name for entry in ESTIMATORS)  # all run on a bag
     runs: dict[str, list] = {name: [] for name in names}
@@ -104,7 +110,13 @@ def main() -> None:
             )
             dataset = f"bag:{bag}"
             sequence, source = bag_sequence(
-                str(bag), BagOptions(ground_truth_topic="/ground_truth")
+                str(bag),
+                BagOptions.model_validate(
+                    nest_dotted(
+                        {"ground_truth_topic": "/ground_truth"}
+                        | dict(item.split("=", 1) for item in args.data)
+                    )
+                ),
             )
             for _ in sequence.measurements():  # the front end runs once (cached)
                 pass
