@@ -10,8 +10,8 @@ resulting pose with the time of the latest point, ``t + max(point_times)``.
 Output: the pose of each frame (body = lidar frame, world = the first frame's body frame),
 as a ``Trajectory``, and relative poses between consecutive frames as ``Odometry``
 measurements ``(rotation vector, translation)`` in the previous body frame, with the stated
-per-frame covariance of the settings (KISS-ICP itself reports none; the front end replaces it
-by the one fitted from corner re-observations, ``datasets.lidar.increment_noise``).
+per-frame covariance of the settings (KISS-ICP itself reports none; the front end raises it
+where the corners' re-observations show more, ``datasets.lidar.increment_noise``).
 """
 
 from __future__ import annotations
@@ -56,9 +56,9 @@ class KissIcpSettings(BaseModel):
     )
     covariance: Literal["re-observations", "stated"] = Field(
         "re-observations",
-        description="covariance of a frame-to-frame odometry: fitted frame by frame from the "
-        "corners the front end re-observes (datasets.lidar.increment_noise; the stated sigmas "
-        "until the fit has evidence), or the stated sigmas throughout",
+        description="covariance of a frame-to-frame odometry: per component the larger of the "
+        "stated sigma and the one fitted frame by frame from the corners the front end "
+        "re-observes (datasets.lidar.increment_noise), or the stated sigmas throughout",
     )
     rotation_sigma_rad: float = Field(
         0.002,
