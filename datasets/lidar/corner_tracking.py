@@ -109,58 +109,56 @@ class CornerTracker:
         mask (k,). The tracks move on to this frame's corners."""
         world = points @ rotation.T + position
         world_cov = np.einsum("ij,kjl,ml->kim", rotation, covariances, rotation)
-        confirmed = np.zeros(len(points), dtype=bool)
-        new_tracks: list[_Track] = []
-        distances = _pairwise_mahalanobis_xy(
-            world,
-            world_cov,
-            np.array([track.last for track in self.tracks]).reshape(-1, world.shape[1]),
-            np.array([track.last_covariance for track in self.tracks]).reshape(
-                -1, *world_cov.shape[1:]
-            ),
-        )
-        for j in range(len(points)):
-            best, match = np.inf, None
-            if self.tracks:
-                nearest = int(np.argmin(distances[j]))
-                best, match = float(distances[j, nearest]), self.tracks[nearest]
-            if match is not None and best <= self.gate:
-                confirmed[j] = True
-                self.stats.nis.append(
-                    float(
-                        _pairwise_mahalanobis_xy(
-                            world[j : j + 1],
-                            world_cov[j : j + 1],
-                            match.first[None],
-                            match.first_covariance[None],
-                        )[0, 0]
-                    )
-                )
+        count, tracks = len(points), self.tracks
+        confirmed = np.zeros(count, dtype=bool)
+        new_tracks = [
+            _Track(world[j], world_cov[j], world[j], world_cov[j], 1, frame) for j in range(count)
+        ]
+        if tracks:
+            # every corner against every track's last sighting (the gate) and first sighting
+            # (the re-observation NIS) in one evaluation: columns i and m + i are track i's
+            m = len(tracks)
+            sightings = np.array(
+                [track.last for track in tracks] + [track.first for track in tracks]
+            )
+            sighting_covariances = np.array(
+                [track.last_covariance for track in tracks]
+                + [track.first_covariance for track in tracks]
+            )
+            distances = _pairwise_mahalanobis_xy(world, world_cov, sightings, sighting_covariances)
+            nearest = np.argmin(distances[:, :m], axis=1)
+            confirmed = distances[np.arange(count), nearest] <= self.gate
+            matched = np.flatnonzero(confirmed)
+            first = m + nearest[matched]
+            self.stats.nis.extend(distances[matched, first].tolist())
+            residuals = (world[matched] - sightings[first])[:, :2]
+            pair_covariances = (world_cov[matched] + sighting_covariances[first])[:, :2, :2]
+            levers = (world[matched] - position)[:, :2]
+            for k, (j, i) in enumerate(
+                zip(matched.tolist(), nearest[matched].tolist(), strict=True)
+            ):
+                match = tracks[i]
                 self.stats.ages.append(match.sightings)
                 self.stats.pairs.append(
                     Reobservation(
-                        (world[j] - match.first)[:2],
-                        (world_cov[j] + match.first_covariance)[:2, :2],
+                        residuals[k],
+                        pair_covariances[k],
                         frame - match.first_frame,
-                        (world[j] - position)[:2],
+                        levers[k],
                         frame,
                     )
                 )
-                new_tracks.append(
-                    _Track(
-                        match.first,
-                        match.first_covariance,
-                        world[j],
-                        world_cov[j],
-                        match.sightings + 1,
-                        match.first_frame,
-                    )
+                new_tracks[j] = _Track(
+                    match.first,
+                    match.first_covariance,
+                    world[j],
+                    world_cov[j],
+                    match.sightings + 1,
+                    match.first_frame,
                 )
-            else:
-                new_tracks.append(_Track(world[j], world_cov[j], world[j], world_cov[j], 1, frame))
         self.tracks = new_tracks
-        self.stats.corners += len(points)
-        self.stats.confirmed += int(confirmed.sum())
+        self.stats.corners += count
+        self.stats.confirmed += int(np.count_nonzero(confirmed))
         return confirmed
 
 

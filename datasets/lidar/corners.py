@@ -38,7 +38,9 @@ and segment merges, never over points):
 
 from __future__ import annotations
 
+import heapq
 import math
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -130,16 +132,40 @@ def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> np.ndarray
     """Indices of the slab points that make the azimuth scan (steps 1-2): one point per
     azimuth bin (the one nearest the slab centre; among equally near ones, the one nearest
     the bin's centre azimuth), ordered by azimuth."""
-    offset = np.abs(points[:, 2] - config.slab_height_m)
+    return _azimuth_scan(points, config)[0]
+
+
+def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """The azimuth scan: xy (m, 2) [m] ordered by azimuth, and their bin indices (m,)."""
+    indices, bins = _azimuth_scan(points, config)
+    return points[:, :2].take(indices, axis=0), bins
+
+
+def _azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """``azimuth_scan_indices`` of ``points`` (n, 3) [m], and the azimuth bin of each (m,)."""
+    # The slab test is the only pass over the whole cloud (120k points on KITTI, reached with
+    # the cloud out of the caches, so reading its z costs most of this function): abs in
+    # place rather than a second temporary, and the slab's rows gathered in one take rather
+    # than two fancy-indexed columns (together 650 -> 390 us on a cold KITTI cloud).
+    offset = points[:, 2] - config.slab_height_m
+    np.abs(offset, out=offset)
     keep = np.flatnonzero(offset <= config.slab_half_thickness_m)  # cheap test first
-    x, y = points[keep, 0], points[keep, 1]
+    slab = points.take(keep, axis=0)
+    x, y = slab[:, 0], slab[:, 1]
     squared_range = x * x + y * y
-    inside = (squared_range >= config.min_range_m**2) & (squared_range <= config.max_range_m**2)
-    keep, x, y = keep[inside], x[inside], y[inside]
-    offset = offset[keep]
+    inside = np.flatnonzero(
+        (squared_range >= config.min_range_m**2) & (squared_range <= config.max_range_m**2)
+    )
+    keep, x, y = keep.take(inside), x.take(inside), y.take(inside)
+    offset = offset.take(keep)
     resolution = np.deg2rad(config.azimuth_resolution_deg)
     azimuth = (np.arctan2(y, x) + np.pi) / resolution  # in bins
     bins = np.floor(azimuth).astype(np.int64)
+    total_bins = int(np.ceil(2.0 * np.pi / resolution)) + 1
+    if len(bins) <= total_bins and (bins[1:] > bins[:-1]).all():
+        # Already a scan, one point per bin in azimuth order (``extract_corners`` on the
+        # front end's scan): every point wins its bin, and the selection below is a no-op.
+        return keep, bins
     # Per bin, the point nearest the slab centre (the most horizontal ring): unlike the
     # nearest point, it does not bias ranges short when several rings share a bin. Ties
     # are common (KITTI's z is quantised to 1 mm: a quarter of the bins) and go to the point
@@ -149,45 +175,65 @@ def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> np.ndarray
     # six tie-breaks (first or last in the file, nearest or farthest, this one 0.91; an
     # unstable sort gave 0.76), so a difference of that size there is not a finding.
     # Per-bin minima and no sort of the slab: O(n), 2x faster on KITTI scans.
-    total_bins = int(np.ceil(2.0 * np.pi / resolution)) + 1
     nearest = np.full(total_bins, np.inf)
     np.minimum.at(nearest, bins, offset)
     winners = np.flatnonzero(offset == nearest[bins])
-    from_centre = np.abs(azimuth[winners] - bins[winners] - 0.5)
+    winner_bins = bins[winners]
+    from_centre = np.abs(azimuth[winners] - winner_bins - 0.5)
     most_central = np.full(total_bins, np.inf)
-    np.minimum.at(most_central, bins[winners], from_centre)
-    winners = winners[from_centre == most_central[bins[winners]]]
-    _, first = np.unique(bins[winners], return_index=True)  # sorted bins; exact ties: first
-    return keep[winners[first]]
-
-
-def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The azimuth scan: xy (m, 2) [m] ordered by azimuth, and their bin indices (m,)."""
-    xy = points[azimuth_scan_indices(points, config), :2]
-    bins = np.floor(
-        (np.arctan2(xy[:, 1], xy[:, 0]) + np.pi) / np.deg2rad(config.azimuth_resolution_deg)
-    ).astype(np.int64)
-    return xy, bins
+    np.minimum.at(most_central, winner_bins, from_centre)
+    winners = winners[from_centre == most_central[winner_bins]]
+    # exact ties left: the first in the file (winners ascend); read in bin order, the
+    # per-bin minima are the scan (as np.unique's first occurrences, without its sort)
+    first = np.full(total_bins, len(keep))
+    np.minimum.at(first, bins[winners], winners)
+    chosen = first[first < len(keep)]
+    return keep[chosen], bins[chosen]
 
 
 def _cluster_breaks(xy: np.ndarray, bins: np.ndarray, config: CornerConfig) -> np.ndarray:
     """``breaks[i]``: the circular scan breaks between point i and i+1 (step 3)."""
     total_bins = int(np.ceil(360.0 / config.azimuth_resolution_deg))
-    following = np.roll(np.arange(len(xy)), -1)
-    jump = np.linalg.norm(xy[following] - xy, axis=1)
-    rng = np.minimum(np.hypot(*xy.T), np.hypot(*xy[following].T))
-    gap = np.mod(bins[following] - bins, total_bins)
+    jump = _norms(_rotated(xy, 1) - xy)
+    ranges = np.hypot(xy[:, 0], xy[:, 1])
+    rng = np.minimum(ranges, _rotated(ranges, 1))
+    gap = np.mod(_rotated(bins, 1) - bins, total_bins)
     return (jump > config.break_distance_m + config.break_range_ratio * rng) | (
         gap > config.max_gap_bins
+    )
+
+
+def _rotated(values: np.ndarray, shift: int) -> np.ndarray:
+    """``values`` (m, ...) starting at row ``shift`` (0 <= shift <= m), the rows before it
+    moved to the end: ``np.roll(values, -shift, axis=0)`` without its overhead."""
+    return np.concatenate([values[shift:], values[:shift]])
+
+
+def _norms(vectors: np.ndarray) -> np.ndarray:
+    """Euclidean norms (k,) of the rows of ``vectors`` (k, 2), bit for bit as
+    ``np.linalg.norm(vectors, axis=1)`` computes them (the square root of x*x + y*y), at a
+    fraction of its cost on these small arrays: a reduction along rows of two is slow."""
+    x, y = vectors[:, 0], vectors[:, 1]
+    return np.sqrt(x * x + y * y)
+
+
+def _no_corners(config: CornerConfig) -> Corners:
+    """The result without corners, shaped for ``config``."""
+    d = config.dimension
+    return Corners(
+        np.zeros((0, d)),
+        np.zeros((0, d, d)),
+        np.zeros((0, 2, d)) if config.directions else None,
+        np.zeros((0, 2, 2)),
     )
 
 
 def _flat_indices(starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Point indices of inclusive ranges ``[starts, ends]`` concatenated, and their range ids."""
     lengths = ends - starts + 1
-    owners = np.repeat(np.arange(len(starts)), lengths)
-    offsets = np.cumsum(lengths) - lengths
-    return np.arange(lengths.sum()) - offsets[owners] + starts[owners], owners
+    owners = np.arange(len(starts)).repeat(lengths)
+    offsets = lengths.cumsum() - lengths
+    return np.arange(len(owners)) + (starts - offsets)[owners], owners
 
 
 def split_segments(
@@ -196,66 +242,79 @@ def split_segments(
     """Iterative end-point fit (the split step of Pavlidis and Horowitz), all segments of a
     level at once. Segments are inclusive index ranges; the split point ends one segment
     and starts the next."""
-    final_starts, final_ends = [], []
+    # Every level is a fixed number of numpy calls on all points of the segments still
+    # splitting; a KITTI scan takes about ten levels, so the cost is the calls: the
+    # per-segment quantities are repeated onto the points in one call, the first point at
+    # each segment's largest distance comes from a second reduceat, and the segments that
+    # are done are picked out once, at the end.
+    # A segment's end points lie on its chord exactly (distance 0), so a largest distance
+    # above zero is at an interior point: no test that the split point is interior.
+    threshold = max(threshold_m, 0.0)
+    level_starts, level_ends, level_split = [], [], []
     for _ in range(max_levels):
         if len(starts) == 0:
             break
-        index, owner = _flat_indices(starts, ends)
-        a, b = xy[starts][owner], xy[ends][owner]
-        chord = b - a
-        length = np.linalg.norm(chord, axis=1)
-        offset = xy[index] - a
-        distance = np.abs(chord[:, 0] * offset[:, 1] - chord[:, 1] * offset[:, 0]) / np.maximum(
-            length, 1e-12
+        lengths = ends - starts + 1
+        # the segments' points concatenated (grouped by segment, in order)
+        cumulative = lengths.cumsum()
+        first_of_segment = cumulative - lengths
+        index = np.arange(cumulative[-1]) + (starts - first_of_segment).repeat(lengths)
+        p_x, p_y = xy.take(index, axis=0).T  # take: a fraction of fancy indexing's time on rows
+        start = xy.take(starts, axis=0)
+        chord = xy.take(ends, axis=0) - start
+        length = _norms(chord)
+        np.maximum(length, 1e-12, out=length)
+        a_x, a_y, chord_x, chord_y, length = (
+            np.concatenate([start, chord, length[:, None]], axis=1).repeat(lengths, axis=0).T
         )
-        # the flat indices are grouped by segment, in order: per-segment maxima by reduceat,
-        # and the first index of each maximum is the first candidate of its owner
-        first_of_segment = np.cumsum(ends - starts + 1) - (ends - starts + 1)
+        distance = np.abs(chord_x * (p_y - a_y) - chord_y * (p_x - a_x)) / length
         worst = np.maximum.reduceat(distance, first_of_segment)
-        candidates = np.flatnonzero(distance == worst[owner])
-        leading = np.ones(len(candidates), dtype=bool)
-        leading[1:] = owner[candidates[1:]] != owner[candidates[:-1]]
-        split_at = index[candidates[leading]]
-        split = (worst > threshold_m) & (split_at > starts) & (split_at < ends)
-        final_starts.append(starts[~split])
-        final_ends.append(ends[~split])
-        starts = np.concatenate([starts[split], split_at[split]])
-        ends = np.concatenate([split_at[split], ends[split]])
-    final_starts.append(starts)
-    final_ends.append(ends)
-    s, e = np.concatenate(final_starts), np.concatenate(final_ends)
+        at_worst = np.where(distance == worst.repeat(lengths), index, len(xy))
+        split_at = np.minimum.reduceat(at_worst, first_of_segment)  # the first such point
+        split = worst > threshold
+        level_starts.append(starts)
+        level_ends.append(ends)
+        level_split.append(split)
+        split_at = split_at[split]
+        starts = np.concatenate([starts[split], split_at])
+        ends = np.concatenate([split_at, ends[split]])
+    # the segments that did not split, level by level, and any the level limit left
+    level_starts.append(starts)
+    level_ends.append(ends)
+    level_split.append(np.zeros(len(starts), dtype=bool))
+    done = ~np.concatenate(level_split)
+    s, e = np.concatenate(level_starts)[done], np.concatenate(level_ends)[done]
     order = np.argsort(s, kind="stable")
     return s[order], e[order]
 
 
 @dataclass(frozen=True)
 class _Moments:
-    """Additive sums over segment points: n, sum x, sum y, sum xx, sum xy, sum yy."""
+    """Additive sums over segment points, (m, 6): n, sum x, sum y, sum xx, sum xy, sum yy."""
 
-    n: np.ndarray
-    sx: np.ndarray
-    sy: np.ndarray
-    sxx: np.ndarray
-    sxy: np.ndarray
-    syy: np.ndarray
+    sums: np.ndarray
 
-    def __add__(self, other: _Moments) -> _Moments:
-        return _Moments(
-            *(getattr(self, k) + getattr(other, k) for k in ("n", "sx", "sy", "sxx", "sxy", "syy"))
-        )
-
-    def take(self, idx: np.ndarray) -> _Moments:
-        return _Moments(*(getattr(self, k)[idx] for k in ("n", "sx", "sy", "sxx", "sxy", "syy")))
-
-    def line(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Total-least-squares line: centroid (m, 2), unit direction (m, 2), RMS residual (m,)."""
-        n = np.maximum(self.n, 1)
-        cx, cy = self.sx / n, self.sy / n
-        cxx, cxy, cyy = self.sxx / n - cx * cx, self.sxy / n - cx * cy, self.syy / n - cy * cy
+    def line(self) -> tuple[np.ndarray, np.ndarray]:
+        """Total-least-squares line: centroid (m, 2), unit direction (m, 2)."""
+        mean, cxx, cxy, cyy = self._centred()
         angle = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)
-        direction = np.column_stack([np.cos(angle), np.sin(angle)])
+        direction = np.empty((len(angle), 2))
+        np.cos(angle, out=direction[:, 0])
+        np.sin(angle, out=direction[:, 1])
+        return mean[:, :2], direction
+
+    def rms(self) -> np.ndarray:
+        """RMS residual (m,) of the total-least-squares line [m]."""
+        _, cxx, cxy, cyy = self._centred()
         smallest = 0.5 * (cxx + cyy) - np.sqrt(0.25 * (cxx - cyy) ** 2 + cxy**2)
-        return np.column_stack([cx, cy]), direction, np.sqrt(np.maximum(smallest, 0.0))
+        return np.sqrt(np.maximum(smallest, 0.0))
+
+    def _centred(self) -> tuple[np.ndarray, ...]:
+        """Means of x, y, xx, xy, yy over the points (m, 5), and the central second moments
+        xx, xy, yy (m,) each."""
+        mean = self.sums[:, 1:] / np.maximum(self.sums[:, :1], 1)
+        cx, cy = mean[:, 0], mean[:, 1]
+        return mean, mean[:, 2] - cx * cx, mean[:, 3] - cx * cy, mean[:, 4] - cy * cy
 
 
 class _PrefixMoments:
@@ -264,25 +323,33 @@ class _PrefixMoments:
 
     def __init__(self, xy: np.ndarray) -> None:
         x, y = xy[:, 0], xy[:, 1]
-        columns = np.column_stack([np.ones(len(xy)), x, y, x * x, x * y, y * y])
-        self._sums = np.vstack([np.zeros((1, 6)), np.cumsum(columns, axis=0)])
+        # a zero row, then the running sums, the columns written and summed in place (the
+        # same sequential sums as stacking the columns and a cumsum, without the copies)
+        self._sums = np.zeros((len(xy) + 1, 6))
+        columns = self._sums[1:]
+        columns[:, 0], columns[:, 1], columns[:, 2] = 1.0, x, y
+        np.multiply(x, x, out=columns[:, 3])
+        np.multiply(x, y, out=columns[:, 4])
+        np.multiply(y, y, out=columns[:, 5])
+        np.cumsum(columns, axis=0, out=columns)
 
     def totals(self, starts, ends) -> np.ndarray:
         """(m, 6) sums of the inclusive ranges ``[starts, ends]`` (index arrays or ints)."""
-        return self._sums[np.asarray(ends) + 1] - self._sums[np.asarray(starts)]
+        return self._sums.take(np.asarray(ends) + 1, axis=0) - self._sums.take(starts, axis=0)
+
+    def total(self, start: int, end: int) -> list[float]:
+        """The six sums of one inclusive range ``[start, end]``, as floats (``totals`` of
+        one range, without its array handling: the merge loop's lookup)."""
+        return (self._sums[end + 1] - self._sums[start]).tolist()
 
     def of(self, starts: np.ndarray, ends: np.ndarray) -> _Moments:
         """Moments of the inclusive ranges ``[starts, ends]``."""
-        return _Moments(*self.totals(starts, ends).T)
-
-
-def _moments(xy: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> _Moments:
-    return _PrefixMoments(xy).of(starts, ends)
+        return _Moments(self.totals(starts, ends))
 
 
 def _line_rms(n: float, sx: float, sy: float, sxx: float, sxy: float, syy: float) -> float:
     """RMS residual of the total-least-squares line of one set of moments (as
-    ``_Moments.line``, in scalars: the merge loop evaluates two pairs per merge)."""
+    ``_Moments.rms``, in scalars: the merge loop evaluates two pairs per merge)."""
     n = max(n, 1.0)
     cx, cy = sx / n, sy / n
     cxx, cxy, cyy = sxx / n - cx * cx, sxy / n - cx * cy, syy / n - cy * cy
@@ -300,13 +367,24 @@ def merge_segments(
     A heap of adjacent pairs with lazy invalidation: a merge re-scores only the two pairs
     next to the merged segment (the whole-array rescoring it replaces cost 64 us a merge,
     about 2 ms per KITTI scan)."""
-    import heapq
+    return _merge_segments(_PrefixMoments(xy), starts, ends, cluster, rms_m)
 
-    prefix = _PrefixMoments(xy)
+
+def _merge_segments(
+    prefix: _PrefixMoments,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    cluster: np.ndarray,
+    rms_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``merge_segments`` with the scan's prefix moments given (``extract_corners`` fits
+    its lines with the same ones)."""
     count = len(starts)
-    seg_start, seg_end = [int(i) for i in starts], [int(i) for i in ends]
-    moments = [tuple(row) for row in prefix.totals(starts, ends).tolist()]
-    cluster_of = [int(cluster[i]) for i in seg_start]
+    totals = prefix.totals(starts, ends)
+    seg_start, seg_end = starts.tolist(), ends.tolist()
+    moments = totals.tolist()
+    segment_cluster = cluster[starts]
+    cluster_of = segment_cluster.tolist()
     following = list(range(1, count + 1))
     preceding = list(range(-1, count - 1))
     version = [0] * count
@@ -317,18 +395,15 @@ def merge_segments(
         if right >= count or cluster_of[left] != cluster_of[right]:
             return
         # the shared split point is counted twice; harmless for the RMS test
-        rms = _line_rms(*(a + b for a, b in zip(moments[left], moments[right], strict=True)))
+        rms = _line_rms(*map(operator.add, moments[left], moments[right]))
         if rms < rms_m:
             heapq.heappush(heap, (rms, left, version[left], right, version[right]))
 
     if count > 1:  # the first scoring of every adjacent pair at once
-        totals = prefix.totals(starts, ends)
-        joint = _Moments(*(totals[:-1] + totals[1:]).T)
-        _, _, rms = joint.line()
-        same = cluster[starts[:-1]] == cluster[starts[1:]]
-        heap = [
-            (float(rms[i]), int(i), 0, int(i) + 1, 0) for i in np.flatnonzero(same & (rms < rms_m))
-        ]
+        rms = _Moments(totals[:-1] + totals[1:]).rms()
+        same = segment_cluster[:-1] == segment_cluster[1:]
+        pairs = np.flatnonzero(same & (rms < rms_m))
+        heap = [(r, i, 0, i + 1, 0) for r, i in zip(rms[pairs].tolist(), pairs.tolist())]
         heapq.heapify(heap)
     while heap:
         _, left, left_version, right, right_version = heapq.heappop(heap)
@@ -339,7 +414,7 @@ def merge_segments(
         ):
             continue
         seg_end[left] = seg_end[right]
-        moments[left] = tuple(prefix.totals(seg_start[left], seg_end[left]).tolist())
+        moments[left] = prefix.total(seg_start[left], seg_end[left])
         version[left] += 1
         version[right] = -1  # gone
         following[left] = following[right]
@@ -360,10 +435,12 @@ def point_perpendicular_variance(
 ) -> np.ndarray:
     """Variance [m^2] of each point across its line, from range/bearing noise:
     ``n^T (s_r^2 u u^T + r^2 s_b^2 v v^T) n`` with u radial, v tangential unit vectors."""
-    r = np.hypot(xy[:, 0], xy[:, 1])
-    u = xy / np.maximum(r, 1e-12)[:, None]
-    v = np.column_stack([-u[:, 1], u[:, 0]])
-    nu, nv = np.sum(normal * u, axis=1), np.sum(normal * v, axis=1)
+    x, y = xy[:, 0], xy[:, 1]
+    r = np.hypot(x, y)
+    scale = np.maximum(r, 1e-12)
+    u_x, u_y = x / scale, y / scale
+    nu = normal[:, 0] * u_x + normal[:, 1] * u_y
+    nv = normal[:, 1] * u_x - normal[:, 0] * u_y  # v = (-u_y, u_x)
     return config.range_sigma_m**2 * nu**2 + (r * config.bearing_sigma_rad) ** 2 * nv**2
 
 
@@ -385,15 +462,18 @@ def line_parameter_covariance(
         var_a (m,), var_b (m,), cov_ab (m,).
     """
     index, owner = _flat_indices(starts, ends)
-    normal = np.column_stack([-direction[:, 1], direction[:, 0]])
-    s = np.sum((xy[index] - centroid[owner]) * direction[owner], axis=1)
-    sigma2 = point_perpendicular_variance(xy[index], normal[owner], config)
+    points = xy.take(index, axis=0)
+    # per point, its line's centroid and direction (one gather)
+    c_x, c_y, d_x, d_y = np.concatenate([centroid, direction], axis=1).take(owner, axis=0).T
+    s = (points[:, 0] - c_x) * d_x + (points[:, 1] - c_y) * d_y
+    sigma2 = point_perpendicular_variance(points, np.column_stack([-d_y, d_x]), config)
     count = len(starts)
 
     def total(values: np.ndarray) -> np.ndarray:
         return np.bincount(owner, weights=values, minlength=count)
 
-    n, sum_s2 = total(np.ones(len(s))), np.maximum(total(s * s), 1e-12)
+    n = (ends - starts + 1).astype(float)  # the point counts (exact)
+    sum_s2 = np.maximum(total(s * s), 1e-12)
     return total(sigma2) / n**2, total(sigma2 * s * s) / sum_s2**2, total(sigma2 * s) / (n * sum_s2)
 
 
@@ -429,94 +509,78 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
     small (about 3 mm at 7 m with 2 mrad bearing noise, ``tests/test_corners.py``).
     """
     d = config.dimension
-    empty = Corners(
-        np.zeros((0, d)),
-        np.zeros((0, d, d)),
-        np.zeros((0, 2, d)) if config.directions else None,
-        np.zeros((0, 2, 2)),
-    )
     xy, bins = azimuth_scan(np.asarray(points, dtype=float), config)
     if len(xy) < 2 * config.min_segment_points:
-        return empty
+        return _no_corners(config)
     breaks = _cluster_breaks(xy, bins, config)
-    if np.any(breaks):  # start the circular scan right after a break
-        shift = int(np.flatnonzero(breaks)[0]) + 1
-        xy, bins, breaks = (
-            np.roll(xy, -shift, axis=0),
-            np.roll(bins, -shift),
-            np.roll(breaks, -shift),
-        )
-    cluster = np.concatenate([[0], np.cumsum(breaks[:-1])])
-    boundaries = np.flatnonzero(np.diff(cluster)) + 1
+    if breaks.any():  # start the circular scan right after a break
+        shift = int(breaks.argmax()) + 1  # the first break
+        xy, breaks = _rotated(xy, shift), _rotated(breaks, shift)
+    cluster = np.zeros(len(xy), dtype=np.int64)  # each point's cluster number
+    np.cumsum(breaks[:-1], out=cluster[1:])
+    boundaries = np.flatnonzero(breaks[:-1]) + 1  # where the cluster number steps
     starts = np.concatenate([[0], boundaries])
     ends = np.concatenate([boundaries - 1, [len(xy) - 1]])
     big = ends - starts + 1 >= config.min_segment_points
     starts, ends = split_segments(xy, starts[big], ends[big], config.split_threshold_m)
-    starts, ends = merge_segments(xy, starts, ends, cluster, config.merge_rms_m)
+    prefix = _PrefixMoments(xy)
+    starts, ends = _merge_segments(prefix, starts, ends, cluster, config.merge_rms_m)
 
     trim = config.end_trim_points
     fit_starts, fit_ends = starts + trim, ends - trim
     usable = fit_ends - fit_starts + 1 >= config.min_segment_points
     fit_starts, fit_ends = np.where(usable, fit_starts, starts), np.where(usable, fit_ends, ends)
-    centroid, direction, _ = _moments(xy, fit_starts, fit_ends).line()
+    centroid, direction = prefix.of(fit_starts, fit_ends).line()
     var_a, var_b, cov_ab = line_parameter_covariance(
         xy, fit_starts, fit_ends, centroid, direction, config
     )
-    first_along = np.sum((xy[starts] - centroid) * direction, axis=1)
-    last_along = np.sum((xy[ends] - centroid) * direction, axis=1)
-    segment_ends = np.stack(
-        [centroid + first_along[:, None] * direction, centroid + last_along[:, None] * direction],
-        axis=1,
+    # each segment's first and last point projected onto its line: along (m, 2) [m] from the
+    # centroid, and the segment's end points (m, 2, 2)
+    along = np.sum(
+        (xy.take(np.column_stack([starts, ends]), axis=0) - centroid[:, None]) * direction[:, None],
+        axis=2,
     )
+    segment_ends = centroid[:, None] + along[..., None] * direction[:, None]
     valid = (ends - starts + 1 >= config.min_segment_points) & (
-        np.abs(last_along - first_along) >= config.min_segment_length_m
+        np.abs(along[:, 1] - along[:, 0]) >= config.min_segment_length_m
     )
 
-    left, right = np.arange(len(starts) - 1), np.arange(1, len(starts))
-    sine = np.abs(
-        direction[left, 0] * direction[right, 1] - direction[left, 1] * direction[right, 0]
-    )
+    # pairs of consecutive segments: segment i (left) and i + 1 (right)
+    sine = np.abs(direction[:-1, 0] * direction[1:, 1] - direction[:-1, 1] * direction[1:, 0])
+    segment_cluster = cluster[starts]
     candidate = (
-        valid[left]
-        & valid[right]
-        & (cluster[starts[left]] == cluster[starts[right]])
-        & (starts[right] - ends[left] <= 1)
+        valid[:-1]
+        & valid[1:]
+        & (segment_cluster[:-1] == segment_cluster[1:])
+        & (starts[1:] - ends[:-1] <= 1)
         & (sine >= np.sin(np.deg2rad(config.min_corner_angle_deg)))
     )
-    left, right = left[candidate], right[candidate]
-    if len(left) == 0:
-        return empty
+    first = np.flatnonzero(candidate)
+    if len(first) == 0:
+        return _no_corners(config)
+    # the two segments of every candidate corner, (k, 2): segment i and i + 1
+    pairs = np.column_stack([first, first + 1])
     normal = np.column_stack([-direction[:, 1], direction[:, 0]])
-    n1, n2 = normal[left], normal[right]
-    rhs = np.column_stack(
-        [np.sum(n1 * centroid[left], axis=1), np.sum(n2 * centroid[right], axis=1)]
-    )
-    corner = np.linalg.solve(np.stack([n1, n2], axis=1), rhs[..., None])[..., 0]
-    gap_left = np.linalg.norm(corner - segment_ends[left, 1], axis=1)
-    gap_right = np.linalg.norm(corner - segment_ends[right, 0], axis=1)
+    normals = normal[pairs]  # (k, 2, 2), rows n1 and n2
+    rhs = np.sum(normals * centroid[pairs], axis=2)
+    corner = np.linalg.solve(normals, rhs[..., None])[..., 0]
+    gap_left = _norms(corner - segment_ends[pairs[:, 0], 1])
+    gap_right = _norms(corner - segment_ends[pairs[:, 1], 0])
     near = (gap_left <= config.max_corner_gap_m) & (gap_right <= config.max_corner_gap_m)
-    left, right, corner = left[near], right[near], corner[near]
-    if len(left) == 0:
-        return empty
-    s1 = np.sum((corner - centroid[left]) * direction[left], axis=1)
-    s2 = np.sum((corner - centroid[right]) * direction[right], axis=1)
-    var_v1 = var_a[left] + 2.0 * s1 * cov_ab[left] + s1**2 * var_b[left]
-    var_v2 = var_a[right] + 2.0 * s2 * cov_ab[right] + s2**2 * var_b[right]
+    pairs, normals, corner = pairs[near], normals[near], corner[near]
+    if len(pairs) == 0:
+        return _no_corners(config)
+    # the corner along each of its two lines, from the line's centroid (k, 2) [m]
+    s = np.sum((corner[:, None] - centroid[pairs]) * direction[pairs], axis=2)
+    var_v = var_a[pairs] + 2.0 * s * cov_ab[pairs] + s**2 * var_b[pairs]
     covariance_2d = corner_covariance(
-        normal[left], normal[right], var_v1, var_v2
+        normals[:, 0], normals[:, 1], var_v[:, 0], var_v[:, 1]
     ) + config.model_sigma_m**2 * np.eye(2)
 
     directions = None
-    if config.directions:
-        toward_1 = (
-            np.sign(np.sum((centroid[left] - corner) * direction[left], axis=1))[:, None]
-            * direction[left]
-        )
-        toward_2 = (
-            np.sign(np.sum((centroid[right] - corner) * direction[right], axis=1))[:, None]
-            * direction[right]
-        )
-        directions = np.stack([toward_1, toward_2], axis=1)
+    if config.directions:  # (k, 2, 2): along each line, away from the corner
+        towards = np.sum((centroid[pairs] - corner[:, None]) * direction[pairs], axis=2)
+        directions = np.sign(towards)[..., None] * direction[pairs]
     if d == 2:
         return Corners(corner, covariance_2d, directions, segment_ends[valid])
     count = len(corner)
