@@ -89,7 +89,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--data", action="append", default=[], help="scans: option KEY=VALUE")
-    parser.add_argument("--rounds", type=int, default=5, help="speed rounds of each")
+    parser.add_argument(
+        "--rounds", type=int, default=15, help="speed rounds of each (five are noise-dominated)"
+    )
     parser.add_argument("--speed-only", action="store_true", help="only the front-end speed")
     args = parser.parse_args()
     front_end_speed(args.frames, args.rounds, dict(a.split("=", 1) for a in args.data))
