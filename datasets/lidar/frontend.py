@@ -178,7 +178,8 @@ class LidarFrontEnd:
                     lambda k: pose if k == len(frames) else frames[k].pose,
                 )
         if odometry is not None and self.settings.kiss.covariance == "re-observations":
-            # this frame's increment, with the fit over the re-observations up to this frame
+            # this frame's increment: the larger of the stated covariance and the fit over the
+            # re-observations up to this frame
             odometry = replace(odometry, covariance=self.increment_noise.current.covariance())
         result = FrontEndFrame(
             cloud.t,

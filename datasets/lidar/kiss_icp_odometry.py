@@ -57,8 +57,9 @@ class KissIcpSettings(BaseModel):
     covariance: Literal["re-observations", "stated"] = Field(
         "re-observations",
         description="covariance of a frame-to-frame odometry: per component the larger of the "
-        "stated sigma and the one fitted frame by frame from the corners the front end "
-        "re-observes (datasets.lidar.increment_noise), or the stated sigmas throughout",
+        "stated sigma and the one fitted (causally, every five frames) from the corners the "
+        "front end re-observes (datasets.lidar.increment_noise), or the stated sigmas "
+        "throughout",
     )
     rotation_sigma_rad: float = Field(
         0.002,
