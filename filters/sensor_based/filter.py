@@ -390,7 +390,10 @@ class SensorBasedSlam:
             return
         if rate is None:
             rate = self.rate if self.rate is not None else np.zeros(self.rate_dim)
-        steps = max(1, int(math.ceil(dt / self.config.max_step_s - 1e-9)))
+        # a gap of a whole number of steps plus float64 rounding sub-steps as that number:
+        # epoch stamps (1.3e9 s) resolve 0.1 s only to 2e-7 s, and 1e-9 of a step let the
+        # same scans stamped two ways propagate in 2 or 3 steps
+        steps = max(1, int(math.ceil(dt / self.config.max_step_s - 1e-5)))
         state = self.state
         for _ in range(steps):
             self._accumulate_motion(rate, dt / steps)
