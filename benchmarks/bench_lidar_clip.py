@@ -87,13 +87,10 @@ def front_end_speed(frames: int, rounds: int, data: dict[str, str]) -> None:
 
 
 def corner_yaw_rate(frames: int, data: dict[str, str]) -> None:
-    """Print the constant yaw-rate error of KISS-ICP that the corners' re-observations imply:
-    a corner seen in frames i and j moves, through KISS-ICP's poses, by
-    ``omega * sum_k dt_k perp(c - p_(k-1))`` if KISS-ICP's yaw drifts at ``omega``; weighted
-    least squares over every re-observation pair (``corner_tracking.Reobservation``) with
-    their covariances. The standard error treats the pairs as independent, which they are
-    not (pairs of one track share its first sighting): it is optimistic."""
+    """Print the constant yaw-rate error of KISS-ICP that the corners' re-observations imply
+    (``datasets.lidar.increment_noise.yaw_rate_disagreement``)."""
     from datasets.bags.source import nest_dotted
+    from datasets.lidar.increment_noise import yaw_rate_disagreement
     from datasets.scan_folder import ScanFolderOptions, scans_sequence
 
     options = ScanFolderOptions.model_validate(
@@ -103,18 +100,13 @@ def corner_yaw_rate(frames: int, data: dict[str, str]) -> None:
     for _ in sequence.measurements():
         pass
     front = source.front_end.frames
-    positions = np.array([frame.pose[:2, 3] for frame in front])
     times = np.array([frame.t for frame in front])
-    information, projection = 0.0, 0.0
-    for pair in source.front_end.tracker.stats.pairs:
-        first = pair.frame - pair.frames
-        offsets = positions[pair.frame] + pair.lever - positions[first : pair.frame]
-        steps = np.diff(times[first : pair.frame + 1])
-        design = steps @ np.column_stack([-offsets[:, 1], offsets[:, 0]])
-        weight = np.linalg.inv(pair.covariance)
-        information += design @ weight @ design
-        projection += design @ weight @ pair.residual
-    omega, error = projection / information, 1.0 / np.sqrt(information)
+    omega, error = yaw_rate_disagreement(
+        source.front_end.tracker.stats.pairs,
+        np.array([frame.pose[:2, 3] for frame in front]),
+        np.array([frame.pose[:2, :2] for frame in front]),
+        times,
+    )
     print(
         f"corners' re-observations imply a KISS-ICP yaw-rate error of {np.rad2deg(omega):+.3f} "
         f"+- {np.rad2deg(error):.3f} deg/s (pairs taken as independent), "

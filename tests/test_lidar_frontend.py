@@ -68,6 +68,16 @@ def test_corner_precision_recall_and_ate(runs, name):
     corners = np.genfromtxt(runs[name] / "frontend" / "corners.csv", delimiter=",", names=True)
     assert len(corners) == metrics["detections"] and np.all(corners["cov_xx"] > 0)
     assert (runs[name] / "dead-reckoning" / "metrics.json").is_file()
+    # KISS-ICP's increment covariance: the fit from the re-observations, never below the
+    # stated default; and the yaw-rate disagreement with the corners, with its error
+    assert metrics["kiss_icp_covariance_source"].startswith("re-observations")
+    assert metrics["kiss_icp_sigma_rotation_rad"] >= 0.002
+    assert metrics["kiss_icp_sigma_translation_m"] >= 0.02
+    assert metrics["kiss_icp_sigma_translation_m"] == pytest.approx(
+        max(0.02, metrics["kiss_icp_fit_sigma_translation_m"])
+    )
+    assert np.isfinite(metrics["kiss_icp_corner_yaw_rate_deg_s"])
+    assert metrics["kiss_icp_corner_yaw_rate_se_deg_s"] > 0
 
 
 def test_ros1_and_ros2_agree(runs):
