@@ -42,10 +42,11 @@ def deviation_from(reference, pose) -> tuple[float, float, float]:
     return float(position.max()), 100.0 * float(position.max()) / path, float(max(yaw))
 
 
-def front_end_speed(frames: int, rounds: int, data: dict[str, str]) -> None:
+def front_end_speed(frames: int, rounds: int, data: dict[str, str]):
     """Print frames/s of KISS-ICP alone (``KISSConfig()``, voxel = range / 100 as its
     pipeline sets it) and of the front end (KISS-ICP + corners + confirmation) with the
-    ``scans:`` defaults (or ``data``), alternating, and their largest pose difference."""
+    ``scans:`` defaults (or ``data``), alternating, and their largest pose difference.
+    Returns the last round's ``LidarSource`` (its front end has run every frame)."""
     from kiss_icp.config import KISSConfig
     from kiss_icp.kiss_icp import KissICP
 
@@ -84,29 +85,14 @@ def front_end_speed(frames: int, rounds: int, data: dict[str, str]) -> None:
         f"range {np.min(alone_seconds / front_seconds):.3f}-{np.max(alone_seconds / front_seconds):.3f}); "
         f"largest pose difference {difference:.1e} m"
     )
+    return source
 
 
-def corner_yaw_rate(frames: int, data: dict[str, str]) -> None:
+def corner_yaw_rate(source) -> None:
     """Print the constant yaw-rate error of KISS-ICP that the corners' re-observations imply
-    (``datasets.lidar.increment_noise.yaw_rate_disagreement``)."""
-    from datasets.bags.source import nest_dotted
-    from datasets.lidar.increment_noise import yaw_rate_disagreement
-    from datasets.scan_folder import ScanFolderOptions, scans_sequence
-
-    options = ScanFolderOptions.model_validate(
-        nest_dotted({"max_frames": str(frames), "point_clouds": "false", **data})
-    )
-    sequence, source = scans_sequence(str(CLIP), options)
-    for _ in sequence.measurements():
-        pass
-    front = source.front_end.frames
-    times = np.array([frame.t for frame in front])
-    omega, error = yaw_rate_disagreement(
-        source.front_end.tracker.stats.pairs,
-        np.array([frame.pose[:2, 3] for frame in front]),
-        np.array([frame.pose[:2, :2] for frame in front]),
-        times,
-    )
+    (``LidarFrontEnd.corner_yaw_rate``), from the front end the speed rounds ran."""
+    times = np.array([frame.t for frame in source.front_end.frames])
+    omega, error = source.front_end.corner_yaw_rate()
     print(
         f"corners' re-observations imply a KISS-ICP yaw-rate error of {np.rad2deg(omega):+.3f} "
         f"+- {np.rad2deg(error):.3f} deg/s (pairs taken as independent), "
@@ -123,10 +109,10 @@ def main() -> None:
     )
     parser.add_argument("--speed-only", action="store_true", help="only the front-end speed")
     args = parser.parse_args()
-    front_end_speed(args.frames, args.rounds, dict(a.split("=", 1) for a in args.data))
+    source = front_end_speed(args.frames, args.rounds, dict(a.split("=", 1) for a in args.data))
     if args.speed_only:
         return
-    corner_yaw_rate(args.frames, dict(a.split("=", 1) for a in args.data))
+    corner_yaw_rate(source)
     options = {"max_frames": str(args.frames), **dict(a.split("=", 1) for a in args.data)}
     sequence = load_dataset(f"scans:{CLIP}", 0, options)
     started = time.perf_counter()

@@ -19,7 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from datasets.errors import InputError
 from datasets.lidar.corner_tracking import CornerTracker
 from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, extract_corners
-from datasets.lidar.increment_noise import IncrementNoiseFit
+from datasets.lidar.increment_noise import IncrementNoiseFit, yaw_rate_disagreement
 from datasets.lidar.kiss_icp_odometry import (
     KissIcpOdometry,
     KissIcpSettings,
@@ -221,6 +221,20 @@ class LidarFrontEnd:
             "max_range_source": self._odometry.range_source,
             **self.increment_noise.current.summary(),
         }
+
+    def corner_yaw_rate(self) -> tuple[float, float] | None:
+        """The constant yaw-rate error of KISS-ICP's poses that the corners' re-observations
+        so far imply, and its (optimistic) standard error [rad/s]
+        (``increment_noise.yaw_rate_disagreement``); None without odometry or pairs."""
+        if not self.frames or any(frame.pose is None for frame in self.frames):
+            return None
+        poses = np.array([frame.pose for frame in self.frames])
+        return yaw_rate_disagreement(
+            self.tracker.stats.pairs,
+            poses[:, :2, 3],
+            poses[:, :2, :2],
+            np.array([frame.t for frame in self.frames]),
+        )
 
     @property
     def kiss_settings(self) -> KissIcpSettings | None:

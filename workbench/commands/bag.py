@@ -102,26 +102,6 @@ def corners_csv(frames) -> str:
     return buffer.getvalue()
 
 
-def _yaw_rate_disagreement(front_end) -> dict:
-    """KISS-ICP's constant yaw-rate error that the corners' re-observations imply [deg/s]
-    and its (optimistic) standard error, or None for both (no odometry or no pairs)."""
-    from datasets.lidar.increment_noise import yaw_rate_disagreement
-
-    frames = front_end.frames
-    found = None
-    if frames and all(frame.pose is not None for frame in frames):
-        found = yaw_rate_disagreement(
-            front_end.tracker.stats.pairs,
-            np.array([frame.pose[:2, 3] for frame in frames]),
-            np.array([frame.pose[:2, :2] for frame in frames]),
-            np.array([frame.t for frame in frames]),
-        )
-    return {
-        "kiss_icp_corner_yaw_rate_deg_s": None if found is None else float(np.rad2deg(found[0])),
-        "kiss_icp_corner_yaw_rate_se_deg_s": None if found is None else float(np.rad2deg(found[1])),
-    }
-
-
 def front_end_metrics(sequence, source, seconds: float) -> dict:
     """The front end's figures (see the module docstring)."""
     from datasets.lidar.corner_truth import (
@@ -132,6 +112,7 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
 
     front_end = source.front_end
     frames = front_end.frames
+    yaw_rate = front_end.corner_yaw_rate()
     metrics: dict = {
         "frames": len(frames),
         "points_per_frame_mean": float(np.mean([f.points for f in frames])) if frames else None,
@@ -162,7 +143,14 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
         # the covariance of KISS-ICP's increments at the last frame, and the fit behind it
         # (datasets.lidar.increment_noise)
         **front_end.increment_noise.current.summary(),
-        **_yaw_rate_disagreement(front_end),
+        # KISS-ICP's constant yaw-rate error that the corners imply [deg/s], and its
+        # (optimistic) standard error
+        "kiss_icp_corner_yaw_rate_deg_s": None
+        if yaw_rate is None
+        else float(np.rad2deg(yaw_rate[0])),
+        "kiss_icp_corner_yaw_rate_se_deg_s": None
+        if yaw_rate is None
+        else float(np.rad2deg(yaw_rate[1])),
     }
     truth = sequence.ground_truth.pose if sequence.ground_truth is not None else None
     trajectory = front_end.trajectory()
