@@ -128,11 +128,13 @@ class Corners:
         )
 
 
-def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> np.ndarray:
+def azimuth_scan_indices(
+    points: np.ndarray, config: CornerConfig
+) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the slab points that make the azimuth scan (steps 1-2): one point per
     azimuth bin (the one nearest the slab centre; among equally near ones, the one nearest
-    the bin's centre azimuth), ordered by azimuth."""
-    return _azimuth_scan(points, config)[0]
+    the bin's centre azimuth), ordered by azimuth; and the bin of each."""
+    return _azimuth_scan(points, config)
 
 
 def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -502,6 +504,19 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
 
     Returns:
         ``Corners`` with ``config.dimension``-D positions and covariances.
+    """
+    return scan_corners(*azimuth_scan(np.asarray(points, dtype=float), config), config)
+
+
+def scan_corners(xy: np.ndarray, bins: np.ndarray, config: CornerConfig) -> Corners:
+    """Corners of an azimuth scan (steps 3-6): ``xy`` (m, 2) [m] in azimuth order with the
+    azimuth bin of each (m,), as ``azimuth_scan`` gives them.
+
+    The order and the bins are the sensor's: a scan deskewed after its selection keeps
+    them. Re-binning moved points would not give the same scan: near the seam and at
+    occlusion edges two surfaces then share bins and the clusters break (on the real KITTI
+    clip, re-binning after a deskew of up to 0.64 m lost 36 % of the corners, and a rigid
+    0.3 m shift alone two of eight in one frame).
 
     Note: bearing noise displaces points along the tangent, which is not perpendicular to a
     wall seen obliquely, so the total-least-squares line is slightly rotated (errors in
@@ -509,7 +524,6 @@ def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:
     small (about 3 mm at 7 m with 2 mrad bearing noise, ``tests/test_corners.py``).
     """
     d = config.dimension
-    xy, bins = azimuth_scan(np.asarray(points, dtype=float), config)
     if len(xy) < 2 * config.min_segment_points:
         return _no_corners(config)
     breaks = _cluster_breaks(xy, bins, config)

@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.lidar.corner_tracking import CornerTracker
-from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, extract_corners
+from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, scan_corners
 from datasets.lidar.increment_noise import IncrementNoiseFit, yaw_rate_disagreement
 from datasets.lidar.kiss_icp_odometry import (
     KissIcpOdometry,
@@ -199,13 +199,14 @@ class LidarFrontEnd:
         estimated motion (better than KISS-ICP's deskew by the previous frame's motion, which
         lags when the vehicle turns; without odometry or times, the raw slab points)."""
         config = self.settings.corner
-        # Reduce to the azimuth scan first (about one point per bin) and deskew only those.
-        chosen = azimuth_scan_indices(cloud.points, config)
+        # Reduce to the azimuth scan first (about one point per bin) and deskew only those,
+        # keeping the order and bins the sensor measured them in (``scan_corners``).
+        chosen, bins = azimuth_scan_indices(cloud.points, config)
         points = cloud.points[chosen]
         times = normalized_point_times(cloud.point_times)
         if odometry is not None and times.size and self.settings.kiss.deskew:
             points = deskew_to_end(points, times[chosen], self._odometry.last_delta())
-        return extract_corners(points, config)
+        return scan_corners(np.ascontiguousarray(points[:, :2]), bins, config)
 
     def resolved(self) -> dict[str, float | str]:
         """What KISS-ICP runs with, for the run's metadata: max range and voxel [m], where
