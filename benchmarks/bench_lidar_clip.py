@@ -95,7 +95,7 @@ def corner_yaw_rate(source) -> None:
     omega, error = source.front_end.corner_yaw_rate()
     print(
         f"corners' re-observations imply a KISS-ICP yaw-rate error of {np.rad2deg(omega):+.3f} "
-        f"+- {np.rad2deg(error):.3f} deg/s (pairs taken as independent), "
+        f"+- {np.rad2deg(error):.3f} deg/s (jackknife over corners), "
         f"{np.rad2deg(omega) * (times[-1] - times[0]):+.2f} deg over the {times[-1] - times[0]:.1f} s"
     )
 

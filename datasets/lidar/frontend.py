@@ -225,7 +225,7 @@ class LidarFrontEnd:
 
     def corner_yaw_rate(self) -> tuple[float, float] | None:
         """The constant yaw-rate error of KISS-ICP's poses that the corners' re-observations
-        so far imply, and its (optimistic) standard error [rad/s]
+        so far imply, and its standard error (jackknife over corners) [rad/s]
         (``increment_noise.yaw_rate_disagreement``); None without odometry or pairs."""
         if not self.frames or any(frame.pose is None for frame in self.frames):
             return None

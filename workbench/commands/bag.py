@@ -144,7 +144,7 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
         # (datasets.lidar.increment_noise)
         **front_end.increment_noise.current.summary(),
         # KISS-ICP's constant yaw-rate error that the corners imply [deg/s], and its
-        # (optimistic) standard error
+        # standard error (jackknife over corners)
         "kiss_icp_corner_yaw_rate_deg_s": None
         if yaw_rate is None
         else float(np.rad2deg(yaw_rate[0])),
@@ -289,7 +289,7 @@ def bag_command(
                 "front end: the corners' re-observations imply KISS-ICP turns "
                 f"{front['kiss_icp_corner_yaw_rate_deg_s']:+.3f} +- "
                 f"{front['kiss_icp_corner_yaw_rate_se_deg_s']:.3f} deg/s more than they say "
-                "(pairs taken as independent: the +- is optimistic)",
+                "(+- : jackknife over corners)",
                 err=True,
             )
     write_atomic(front_dir / "metrics.json", dump_json(front))
