@@ -225,8 +225,9 @@ class _FixedPredictor:
 
 def test_a_sighting_between_the_gates_pairs_only_by_mutual_exclusion() -> None:
     """Outside every association gate (0.99) but inside exactly one landmark's new-landmark
-    gate (0.9999), with no rival sighting and the landmark not yet matched: matched. Two
-    landmarks in reach, a rival sighting, or a landmark already matched: ambiguous."""
+    gate (0.9999), with no rival sighting and the landmark not yet matched: matched, with
+    its noise inflated so that its NIS equals the association gate. Two landmarks in
+    reach, a rival sighting, or a landmark already matched: ambiguous."""
     from datasets.estimate import AssociationDecision as Decision
     from datasets.estimator_options import AssociationOptions
     from filters.association import AssociationPolicy
@@ -248,6 +249,20 @@ def test_a_sighting_between_the_gates_pairs_only_by_mutual_exclusion() -> None:
 
     lone = decide([[0.0, 0.0], [5.0, 0.0]], [[offset, offset]])
     assert lone == ([Decision.MATCHED], [0])
+    # used as a sighting at the association gate: R' = R + (c - 1) S, c = D^2 / gate
+    paired = policy.by_geometry(
+        np.array([[offset, offset]]),
+        noise[None],
+        2,
+        _FixedPredictor([[0.0, 0.0], [5.0, 0.0]], predictor_sigma),
+    )
+    factor = 12.0 / chi2_gate(2, 0.99)
+    assert paired.inflation[0] == pytest.approx(factor)
+    innovation = noise + predictor_sigma**2 * np.eye(2)
+    assert np.allclose(paired.noise[0], noise + (factor - 1.0) * innovation)
+    # its NIS with the inflated noise is the gate's
+    inflated_nis = 2 * offset**2 / (paired.noise[0][0, 0] + predictor_sigma**2)
+    assert inflated_nis == pytest.approx(chi2_gate(2, 0.99))
     two_in_reach = decide([[0.0, 0.0], [2 * offset, 2 * offset]], [[offset, offset]])
     assert two_in_reach[0] == [Decision.AMBIGUOUS]
     rivals = decide([[0.0, 0.0], [5.0, 0.0]], [[offset, offset], [-offset, -offset]])

@@ -649,7 +649,7 @@ class SensorBasedSlam:
             start = len(values) * d
             measured_features.append(position_of[landmark_id])
             values.append(points[j])
-            cov_blocks.append(association.noise[j])  # inflated outside the id gate
+            cov_blocks.append(association.noise[j])  # inflated where the policy says
             model_blocks.append(covs[j])
             if directions is not None:
                 for feature in state.direction_features(landmark_id):

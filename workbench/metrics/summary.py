@@ -36,7 +36,8 @@ records, else the same id): ``landmark_rmse_m``, ``landmarks_mapped`` (landmarks
     map, with or without truth: a recording without truth still says how big its map is).
 association: ``association_rejected_fraction``, ``association_ambiguous_fraction`` (of all
     sightings: not used), ``association_inflated_fraction`` (used with inflated noise: a
-    known id outside the gate), ``association_precision``, ``association_recall``,
+    known id outside the id gate, or a geometric pairing by mutual exclusion between the
+    association and new-landmark gates, ``filters.association.policy``), ``association_precision``, ``association_recall``,
     ``loop_closures`` (events),
     ``loop_closure_precision`` (``data_association``).
 cost: ``steps`` (timing entries = measurements processed; without timing, causal pose
