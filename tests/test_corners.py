@@ -106,7 +106,9 @@ def test_a_deskewed_scan_keeps_the_sensor_order_and_finds_the_same_corners():
     before = scan_corners(scan, bins, config)
     assert len(before.points) == 4
     shifted = scan_corners(scan + np.array([0.3, -0.2]), bins, config)
-    assert np.allclose(shifted.points[:, :2], before.points[:, :2] + np.array([0.3, -0.2]), atol=1e-9)
+    assert np.allclose(
+        shifted.points[:, :2], before.points[:, :2] + np.array([0.3, -0.2]), atol=1e-9
+    )
     # what a deskew to the sweep end does to a sensor moving at 3 m/s over a 0.1 s sweep
     sweep_fraction = np.linspace(0.0, 1.0, len(scan))
     moved = scan + np.column_stack([0.3 * (1.0 - sweep_fraction), np.zeros(len(scan))])

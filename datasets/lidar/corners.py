@@ -128,9 +128,7 @@ class Corners:
         )
 
 
-def azimuth_scan_indices(
-    points: np.ndarray, config: CornerConfig
-) -> tuple[np.ndarray, np.ndarray]:
+def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the slab points that make the azimuth scan (steps 1-2): one point per
     azimuth bin (the one nearest the slab centre; among equally near ones, the one nearest
     the bin's centre azimuth), ordered by azimuth; and the bin of each."""

@@ -61,6 +61,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.cluster.hierarchy import fcluster, linkage
 
 from datasets.lidar.corner_tracking import Reobservation
 
@@ -77,8 +78,9 @@ lags the recording by that much, for a fifth of the cost of a fit per frame."""
 
 CORNER_CLUSTER_M = 0.5
 """Re-observation pairs whose first sightings lie this close [m] are taken as one physical
-corner by ``yaw_rate_disagreement``'s standard error (the corner extractor's
-``max_corner_gap_m`` is 0.3 m; two true corners this close share most of their points)."""
+corner by ``yaw_rate_disagreement``'s standard error. Two distinct corners this close are
+taken as one, which errs toward a larger error; on the real clip 0.01 m gives 48
+clusters and +-0.087 deg/s, 0.5 m 19 clusters and +-0.096."""
 
 
 PoseOf = Callable[[int], np.ndarray]
@@ -317,8 +319,6 @@ def yaw_rate_disagreement(
             frame [m]. rotations: (n, 2, 2) horizontal rotation block of every frame.
             times: (n,) pose time of every frame [s].
     """
-    from scipy.cluster.hierarchy import fcluster, linkage
-
     if not pairs:
         return None
     designs, weights, residuals, firsts = [], [], [], []

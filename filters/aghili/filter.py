@@ -373,7 +373,7 @@ class AghiliFilter:
         jacobian = sparse_sensitivity(attitude, predicted, slots[chosen])
         residual = (points[rows] - predicted).ravel()  # z - h(x^-)
         noise = R[rows]
-        used = association.noise[rows]  # inflated where the policy says (id gate, exclusive pairing)
+        used = association.noise[rows]  # inflated where the policy says so
         if self.noise_window is not None and self.noise_window.residual == "prior":
             # eq. (42) as printed: prior residuals with their H P^- H^T blocks, used at once
             self.noise_window.add(residual.reshape(-1, 3), projected_blocks(jacobian, self.P))
