@@ -142,6 +142,22 @@ def test_a_constant_yaw_drift_is_recovered_from_the_re_observations():
         assert abs(omega - truth) < max(5.0 * error, 0.1 * abs(truth)), (omega, error, truth)
         assert error < 0.002  # resolved: 0.01 rad/s is many of them
     assert yaw_rate_disagreement([], np.zeros((0, 2)), np.zeros((0, 2, 2)), np.zeros(0)) is None
+    # the pairs of two corners only: no spread over corners to state an error from
+    pairs, poses = _simulate(5, 0.0, 0.005)
+    flat = [pair for frame_pairs in pairs for pair in frame_pairs]
+    positions = np.array([pose[:2, 3] for pose in poses])
+    firsts = np.array([positions[p.frame] + p.lever - p.residual for p in flat])
+    two = [
+        p for p, first in zip(flat, firsts, strict=True) if np.linalg.norm(first - firsts[0]) < 0.5
+    ]
+    other = next(first for first in firsts if np.linalg.norm(first - firsts[0]) > 2.0)
+    two += [p for p, first in zip(flat, firsts, strict=True) if np.linalg.norm(first - other) < 0.5]
+    assert (
+        yaw_rate_disagreement(
+            two, positions, np.array([pose[:2, :2] for pose in poses]), 0.1 * np.arange(len(poses))
+        )
+        is None
+    )
 
 
 def test_the_yaw_rate_standard_error_matches_the_spread_over_recordings():
