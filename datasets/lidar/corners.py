@@ -128,21 +128,17 @@ class Corners:
         )
 
 
-def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the slab points that make the azimuth scan (steps 1-2): one point per
-    azimuth bin (the one nearest the slab centre; among equally near ones, the one nearest
-    the bin's centre azimuth), ordered by azimuth; and the bin of each."""
-    return _azimuth_scan(points, config)
-
-
 def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
     """The azimuth scan: xy (m, 2) [m] ordered by azimuth, and their bin indices (m,)."""
-    indices, bins = _azimuth_scan(points, config)
+    indices, bins = azimuth_scan_indices(points, config)
     return points[:, :2].take(indices, axis=0), bins
 
 
-def _azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """``azimuth_scan_indices`` of ``points`` (n, 3) [m], and the azimuth bin of each (m,)."""
+def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the slab points of ``points`` (n, 3) [m] that make the azimuth scan (steps
+    1-2): one point per azimuth bin (the one nearest the slab centre; among equally near
+    ones, the one nearest the bin's centre azimuth), ordered by azimuth; and the bin of
+    each (m,)."""
     # The slab test is the only pass over the whole cloud (120k points on KITTI, reached with
     # the cloud out of the caches, so reading its z costs most of this function): abs in
     # place rather than a second temporary, and the slab's rows gathered in one take rather
@@ -162,10 +158,6 @@ def _azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray,
     azimuth = (np.arctan2(y, x) + np.pi) / resolution  # in bins
     bins = np.floor(azimuth).astype(np.int64)
     total_bins = int(np.ceil(2.0 * np.pi / resolution)) + 1
-    if len(bins) <= total_bins and (bins[1:] > bins[:-1]).all():
-        # Already a scan, one point per bin in azimuth order (``extract_corners`` on the
-        # front end's scan): every point wins its bin, and the selection below is a no-op.
-        return keep, bins
     # Per bin, the point nearest the slab centre (the most horizontal ring): unlike the
     # nearest point, it does not bias ranges short when several rings share a bin. Ties
     # are common (KITTI's z is quantised to 1 mm: a quarter of the bins) and go to the point

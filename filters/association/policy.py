@@ -224,6 +224,16 @@ def _exclusive_wide_pairs(
     return pairs
 
 
+def _inflated_to_gate(
+    distance: float, gate: float, measured_cov: np.ndarray, predicted_cov: np.ndarray
+) -> tuple[float, np.ndarray]:
+    """A sighting at ``D^2 = distance`` beyond ``gate`` used as one at the gate (module
+    docstring): the factor ``c = D^2 / gate`` and the noise ``R + (c - 1) S`` [(d, d)], with
+    ``S = H P H^T + R`` from ``predicted_cov`` (``H P H^T``) and ``measured_cov`` (``R``)."""
+    factor = distance / gate
+    return factor, measured_cov + (factor - 1.0) * (predicted_cov + measured_cov)
+
+
 def _empty(mode: Mode, measured_cov: np.ndarray) -> ScanAssociation:
     """Every sighting new, with its own noise."""
     noise = np.array(measured_cov, dtype=float)
@@ -374,9 +384,9 @@ class AssociationPolicy:
                     decisions[j], reasons[j] = Decision.REJECTED, Reason.SINGULAR.value
                     candidates[j], nis[j] = -1, np.nan
                 elif distance > gate:
-                    inflation[j] = distance / gate
-                    innovation_cov = blocks[local] + measured_cov[j]
-                    noise[j] = measured_cov[j] + (inflation[j] - 1.0) * innovation_cov
+                    inflation[j], noise[j] = _inflated_to_gate(
+                        distance, gate, measured_cov[j], blocks[local]
+                    )
         return ScanAssociation(
             "ids", tuple(decisions), candidates, tuple(reasons), nis, noise, inflation
         )
@@ -449,8 +459,9 @@ class AssociationPolicy:
                 distances[j, i],
             )
             # used as a sighting at the association gate would be (module docstring)
-            inflation[j] = distances[j, i] / gate
-            noise[j] = measured_cov[j] + (inflation[j] - 1.0) * (blocks[i] + measured_cov[j])
+            inflation[j], noise[j] = _inflated_to_gate(
+                distances[j, i], gate, measured_cov[j], blocks[i]
+            )
         return ScanAssociation(
             mode, tuple(decisions), candidates, tuple(reasons), nis, noise, inflation, search
         )
