@@ -112,14 +112,21 @@ def test_dead_reckoning_3d_odometry_covariance_matches_monte_carlo() -> None:
     pose = dead_reckoning.estimate().causal.pose
     stated = pose.covariances[-1]
     end = gtsam.Pose3(gtsam.Rot3.Quaternion(*pose.rotations[-1]), pose.positions[-1])
-    samples = []
-    factor = np.linalg.cholesky(covariance)
-    for _ in range(4000):
-        composed = gtsam.Pose3()
-        for u in increments:
-            noisy = _perturb(u, factor @ rng.normal(size=6))
-            composed = composed.compose(gtsam.Pose3(gtsam.Rot3(so3_exp(noisy[:3])), noisy[3:]))
-        samples.append(end.localCoordinates(composed))
+    # the draws in the order a loop over samples, then increments, would make them; the
+    # samples composed all at once (U Exp(eta) of each increment, as ``_perturb``)
+    count = 4000
+    eta = rng.normal(size=(count, len(increments), 6)) @ np.linalg.cholesky(covariance).T
+    rotations, positions = np.tile(np.eye(3), (count, 1, 1)), np.zeros((count, 3))
+    for k, u in enumerate(increments):
+        rotation = so3_exp(u[:3])
+        positions = positions + np.einsum(
+            "nij,nj->ni", rotations, u[3:] + eta[:, k, 3:] @ rotation.T
+        )
+        rotations = rotations @ (rotation @ so3_exp(eta[:, k, :3]))
+    samples = [
+        end.localCoordinates(gtsam.Pose3(gtsam.Rot3(rotations[n]), positions[n]))
+        for n in range(count)
+    ]
     empirical = np.cov(np.array(samples).T)
     np.testing.assert_allclose(np.sqrt(np.diag(empirical)), np.sqrt(np.diag(stated)), rtol=0.06)
 
