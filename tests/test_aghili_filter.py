@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 
 import numpy as np
 import pytest
@@ -99,7 +100,9 @@ def _low_noise_pose_nees(seed: int) -> np.ndarray:
 def test_averaged_pose_nees_is_inside_the_95_percent_bounds() -> None:
     """20 seeds x 30 s, low noise, 3 anchors: averaged pose NEES (6 dof) inside the two-sided
     95% bounds for >= 80% of the steps (catches a wrong Q or transition matrix)."""
-    with ProcessPoolExecutor(2) as pool:  # 20 independent runs on the machine's 2 cores
+    # 20 independent runs on the machine's 2 cores, from a fork server (a clean
+    # process, as the sweep's workers: not a fork of this one with its threads)
+    with ProcessPoolExecutor(2, mp_context=get_context("forkserver")) as pool:
         runs = list(pool.map(_low_noise_pose_nees, range(20)))
     steps = min(len(r) for r in runs)
     result = averaged_nees(np.array([r[:steps] for r in runs]), dof=6)
