@@ -165,7 +165,7 @@ def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     scan_times = np.array([m.t for m in sequence.measurements() if isinstance(m, LandmarkScan)])
     assert np.max(np.diff(scan_times)) > 5.0  # the gap the window must bridge
     assert SmootherFixedLag.Config().keep_map
-    kept = SmootherFixedLag(SmootherFixedLag.Config(), sequence)
+    kept = SmootherFixedLag(SmootherFixedLag.Config(lag_s=5.0), sequence)
     for measurement in sequence.measurements():
         kept.process(measurement)
     estimate = kept.estimate()
@@ -174,7 +174,7 @@ def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     assert returns == []
     seen = {int(i) for _, ids in sequence.ground_truth.scan_ids for i in ids}
     assert len(estimate.landmarks) == len(seen)
-    leaving = SmootherFixedLag(SmootherFixedLag.Config(keep_map=False), sequence)
+    leaving = SmootherFixedLag(SmootherFixedLag.Config(lag_s=5.0, keep_map=False), sequence)
     for measurement in sequence.measurements():
         leaving.process(measurement)
     left = leaving.estimate()
