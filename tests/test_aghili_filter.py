@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
-
 import numpy as np
 import pytest
 
@@ -14,6 +11,7 @@ from datasets.simulation.scenarios import load_scenario
 from filters.aghili import quaternion_jpl as quat
 from filters.aghili.filter import AghiliConfig, AghiliFilter
 from workbench.metrics.consistency import averaged_nees, nees, pose_errors
+from workbench.sweep.backends import LocalBackend
 
 
 def rover(seed: int, **options: str):
@@ -100,10 +98,12 @@ def _low_noise_pose_nees(seed: int) -> np.ndarray:
 def test_averaged_pose_nees_is_inside_the_95_percent_bounds() -> None:
     """20 seeds x 30 s, low noise, 3 anchors: averaged pose NEES (6 dof) inside the two-sided
     95% bounds for >= 80% of the steps (catches a wrong Q or transition matrix)."""
-    # 20 independent runs on the machine's 2 cores, from a fork server (a clean
-    # process, as the sweep's workers: not a fork of this one with its threads)
-    with ProcessPoolExecutor(2, mp_context=get_context("forkserver")) as pool:
-        runs = list(pool.map(_low_noise_pose_nees, range(20)))
+    backend = LocalBackend(2)  # 20 independent runs on the sweep's workers (2 cores)
+    try:
+        futures = [backend.submit(_low_noise_pose_nees, seed) for seed in range(20)]
+        runs = [future.result() for future in futures]
+    finally:
+        backend.close()
     steps = min(len(r) for r in runs)
     result = averaged_nees(np.array([r[:steps] for r in runs]), dof=6)
     assert result.inside_fraction >= 0.8, result.inside_fraction

@@ -3,8 +3,6 @@ covariance conversion against GTSAM, the Joseph form, and behaviour on hand-made
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
 from pathlib import Path
 
 import gtsam
@@ -30,6 +28,7 @@ from filters.ekf_slam.observation import (
 from workbench.metrics.consistency import nees, pose_errors
 from workbench.registry import load_dataset
 from workbench.runner import run_estimator
+from workbench.sweep.backends import LocalBackend
 
 UTIAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"
 
@@ -603,10 +602,12 @@ def test_with_odometry_the_constrained_ekf_keeps_its_heading_consistent_the_stan
         assert _heading_nees_after(noise_free, exact, 0.0) < 1e-6, jacobians
     variants = ("observability-constrained", "standard")
     runs = [(jacobians, seed, data) for jacobians in variants for seed in range(6)]
-    # 12 independent loops on the machine's 2 cores, from a fork server (a clean
-    # process, as the sweep's workers: not a fork of this one with its threads)
-    with ProcessPoolExecutor(2, mp_context=get_context("forkserver")) as pool:
-        values = list(pool.map(_late_heading_nees, runs))
+    backend = LocalBackend(2)  # 12 independent loops on the sweep's workers (2 cores)
+    try:
+        futures = [backend.submit(_late_heading_nees, run) for run in runs]
+        values = [future.result() for future in futures]
+    finally:
+        backend.close()
     heading = {
         jacobians: float(np.mean(values[6 * k : 6 * k + 6])) for k, jacobians in enumerate(variants)
     }
