@@ -337,19 +337,21 @@ def yaw_rate_disagreement(
         firsts.append(positions[pair.frame] + pair.lever - pair.residual)
     design, weight, residual = np.array(designs), np.array(weights), np.array(residuals)
     weighted = np.einsum("kji,kjl->kil", design, weight)  # A^T W, (k, 3, 2)
-    information = np.einsum("kij,kjl->il", weighted, design)
+    pair_information = np.einsum("kij,kjl->kil", weighted, design)  # A^T W A, (k, 3, 3)
+    pair_projection = np.einsum("kij,kj->ki", weighted, residual)  # A^T W r, (k, 3)
+    information = pair_information.sum(axis=0)
     if not np.all(np.isfinite(information)) or np.linalg.matrix_rank(information) < 3:
         return None
     clusters = fcluster(linkage(np.array(firsts), "single"), CORNER_CLUSTER_M, "distance") - 1
     count = int(clusters.max()) + 1
     if count < 3:
         return None
-    projection = np.einsum("kij,kj->i", weighted, residual)
+    projection = pair_projection.sum(axis=0)
     estimate = np.linalg.solve(information, projection)
     cluster_information = np.zeros((count, 3, 3))
-    np.add.at(cluster_information, clusters, np.einsum("kij,kjl->kil", weighted, design))
+    np.add.at(cluster_information, clusters, pair_information)
     cluster_projection = np.zeros((count, 3))
-    np.add.at(cluster_projection, clusters, np.einsum("kij,kj->ki", weighted, residual))
+    np.add.at(cluster_projection, clusters, pair_projection)
     left_information = information - cluster_information
     if np.any(np.linalg.matrix_rank(left_information) < 3):
         return None
