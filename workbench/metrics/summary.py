@@ -37,8 +37,8 @@ records, else the same id): ``landmark_rmse_m``, ``landmarks_mapped`` (landmarks
 association: ``association_rejected_fraction``, ``association_ambiguous_fraction`` (of all
     sightings: not used), ``association_inflated_fraction`` (used with inflated noise: a
     known id outside the id gate, or a geometric pairing by mutual exclusion between the
-    association and new-landmark gates, ``filters.association.policy``), ``association_precision``, ``association_recall``,
-    ``loop_closures`` (events),
+    association and new-landmark gates, ``filters.association.policy``),
+    ``association_precision``, ``association_recall``, ``loop_closures`` (events),
     ``loop_closure_precision`` (``data_association``).
 cost: ``steps`` (timing entries = measurements processed; without timing, causal pose
     records), ``time_per_step_ms_median``, ``time_per_step_ms_p99``, ``time_total_s``.
