@@ -14,7 +14,9 @@ Ground truth: an optional TUM file (option ``ground_truth``).
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from pydantic import ConfigDict, Field
@@ -80,6 +82,15 @@ class ScanFolderOptions(LidarSourceOptions):
     )
     rate_hz: float = Field(10.0, gt=0, description="frame rate when there is no timestamps file")
     ground_truth: str | None = Field(None, description="TUM file of true poses")
+    point_times: Literal["field", "azimuth"] = Field(
+        "field",
+        description="per-point times: 'field', from a time field where a file has one (none "
+        "otherwise: the clouds are taken as motion-compensated); 'azimuth', from each point's "
+        "azimuth, for clouds of a spinning lidar that are not motion-compensated and carry no "
+        "times: a clockwise sweep from behind over one frame interval, the frame's stamp at "
+        "mid-sweep facing forward (KITTI raw's velodyne_points; KISS-ICP's KITTI-raw loader "
+        "computes the same)",
+    )
 
 
 def _cloud_from_records(
@@ -242,6 +253,20 @@ def read_scan(path: Path, stamp: float, time_unit: str = "auto") -> PointCloud:
     return PointCloud(t=stamp, points=points, point_times=times)
 
 
+def azimuth_point_times(points: np.ndarray, sweep_s: float) -> np.ndarray:
+    """Per-point times [s] relative to the frame's stamp, (n,), of a spinning lidar's cloud
+    that carries none: ``-atan2(y, x) / (2 pi) * sweep_s``, a clockwise sweep seen from above
+    that starts behind (azimuth +180 deg, ``-sweep_s / 2``), faces forward at the stamp and
+    ends behind (``+sweep_s / 2``). This is KITTI raw's timing: its velodyne_points are not
+    motion-compensated, and the camera is triggered as the sensor faces forward (the raw
+    data's readme; KISS-ICP's KITTI-raw loader uses the same rule).
+
+    Args:
+        points: (n, 3) [m], sensor frame (x forward, y left, z up). sweep_s: one revolution [s].
+    """
+    return -np.arctan2(points[:, 1], points[:, 0]) / (2.0 * np.pi) * sweep_s
+
+
 def frame_times(folder: Path, files: list[Path], settings: ScanFolderOptions) -> np.ndarray:
     """Frame times [s] (module docstring); ``InputError`` for a bad or short timestamps file."""
     candidates = (
@@ -290,6 +315,8 @@ def scans_sequence(
         raise InputError(f"{folder}: no .bin, .pcd or .ply scans")
     times = frame_times(folder, files, settings)
     order_problem = np.flatnonzero(np.diff(times) <= 0)
+    steps = np.diff(times)
+    sweep_s = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0 / settings.rate_hz
     front_end = LidarFrontEnd(settings.front_end_settings())
     source = LidarSource(front_end)
 
@@ -306,6 +333,8 @@ def scans_sequence(
             if len(cloud.points) == 0:
                 report.skip(str(folder), f"empty scan ({path.name})", float(stamp))
                 continue
+            if settings.point_times == "azimuth":
+                cloud = replace(cloud, point_times=azimuth_point_times(cloud.points, sweep_s))
             last = stamp
             yield cloud
 

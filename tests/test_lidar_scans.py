@@ -115,6 +115,44 @@ def test_without_deskewing_the_start_is_the_first_kept_scan(tmp_path):
     assert [m.t for m in items if isinstance(m, PointCloud)] == pytest.approx([5.1, 5.2, 5.3])
 
 
+def test_azimuth_point_times_for_clouds_without_them(tmp_path):
+    """``point_times=azimuth``: a cloud without a time field gets KITTI raw's clockwise
+    sweep, from behind (-T/2) through forward (the stamp) to behind again (+T/2), T the
+    frame interval; the front end then deskews with them, so the sequence starts at the
+    first sweep's end, half a frame after its stamp."""
+    from datasets.scan_folder import azimuth_point_times
+
+    bearings = np.radians([179.0, 90.0, 0.0, -90.0, -179.0])
+    points = np.column_stack([np.cos(bearings), np.sin(bearings), np.zeros(5)])
+    assert azimuth_point_times(points, 0.1) == pytest.approx(
+        [-0.0497222, -0.025, 0.0, 0.025, 0.0497222], abs=1e-6
+    )
+    for k, (points, _) in enumerate(_sweeps(3)):
+        (tmp_path / f"{k:06d}.bin").write_bytes(
+            np.column_stack([points, np.ones(len(points))]).astype("<f4").tobytes()
+        )
+    (tmp_path / "times.txt").write_text("\n".join(f"{5.0 + 0.1 * k:.3f}" for k in range(3)) + "\n")
+    options = {"kiss.max_num_threads": "1"}
+    taken_as_compensated = load_dataset(f"scans:{tmp_path}", 0, options)
+    items = list(taken_as_compensated.measurements())
+    assert taken_as_compensated.initial_state.t == pytest.approx(5.0)
+    assert all(m.point_times is None for m in items if isinstance(m, PointCloud))
+    sequence = load_dataset(f"scans:{tmp_path}", 0, {**options, "point_times": "azimuth"})
+    items = list(sequence.measurements())
+    clouds = [m for m in items if isinstance(m, PointCloud)]
+    assert len(clouds) == 2 and all(m.point_times is not None for m in clouds)
+    stored = clouds[0].points
+    assert np.allclose(clouds[0].point_times, azimuth_point_times(stored, 0.1), atol=1e-12)
+    assert 5.049 < sequence.initial_state.t <= 5.05
+    odometry = [m for m in items if isinstance(m, Odometry)]
+    assert [m.t for m in odometry] == pytest.approx(
+        [
+            t + float(np.max(azimuth_point_times(c.points, 0.1)))
+            for t, c in ((5.1, clouds[0]), (5.2, clouds[1]))
+        ]
+    )
+
+
 def test_bad_scans(tmp_path):
     (tmp_path / "000.bin").write_bytes(b"\0" * 20)
     with pytest.raises(
