@@ -150,12 +150,20 @@ class LidarFrontEnd:
                 f"lidar front end: frame {index} requested before frame {len(self.frames)}"
             )
         started = time.perf_counter()
+        # The corners' pass over the whole cloud comes first, while the cloud is still in the
+        # caches from its reading: after KISS-ICP it costs 0.25 ms more on a KITTI scan.
+        scan = (
+            azimuth_scan_indices(cloud.points, self.settings.corner)
+            if self.settings.corners
+            else None
+        )
+        selected = time.perf_counter()
         pose, odometry, t = None, None, cloud.t
         if self._odometry is not None:
             registered = self._odometry.register(cloud)
             pose, odometry, t = registered.pose, registered.odometry, registered.t
         icp_done = time.perf_counter()
-        corners = self._corners(cloud, odometry) if self.settings.corners else None
+        corners = self._corners(cloud, odometry, *scan) if scan is not None else None
         if (
             corners is not None
             and cloud.point_times is not None
@@ -188,20 +196,22 @@ class LidarFrontEnd:
             pose,
             odometry,
             corners,
-            icp_done - started,
-            time.perf_counter() - icp_done,
+            icp_done - selected,
+            time.perf_counter() - icp_done + selected - started,
         )
         self.frames.append(result)
         return result
 
-    def _corners(self, cloud: PointCloud, odometry: Odometry | None) -> Corners:
-        """Corners of the slab points, deskewed to the frame's pose time with the frame's own
+    def _corners(
+        self, cloud: PointCloud, odometry: Odometry | None, chosen: np.ndarray, bins: np.ndarray
+    ) -> Corners:
+        """Corners of the azimuth scan ``chosen`` (point indices) / ``bins``
+        (``azimuth_scan_indices``), deskewed to the frame's pose time with the frame's own
         estimated motion (better than KISS-ICP's deskew by the previous frame's motion, which
         lags when the vehicle turns; without odometry or times, the raw slab points)."""
         config = self.settings.corner
-        # Reduce to the azimuth scan first (about one point per bin) and deskew only those,
-        # keeping the order and bins the sensor measured them in (``scan_corners``).
-        chosen, bins = azimuth_scan_indices(cloud.points, config)
+        # Only the azimuth scan (about one point per bin) is deskewed, keeping the order and
+        # bins the sensor measured them in (``scan_corners``).
         points = cloud.points[chosen]
         times = normalized_point_times(cloud.point_times)
         if odometry is not None and times.size and self.settings.kiss.deskew:
