@@ -4,7 +4,9 @@ Formats: KITTI ``.bin`` (float32 x, y, z, intensity), ``.pcd`` (``DATA ascii`` o
 ``binary``; ``binary_compressed`` is refused with a clear error), ``.ply`` (``ascii`` or
 ``binary_little_endian``/``binary_big_endian`` vertex elements). Per-point times come from
 a ``time``/``t``/``timestamp``/``offset_time`` field when a PCD/PLY has one (same unit rules
-as bags, ``datasets.bags.pointcloud2``).
+as bags, ``datasets.bags.pointcloud2``); without one the clouds are taken as
+motion-compensated, unless option ``point_times=azimuth`` derives the times of an
+uncompensated spinning sweep from the azimuths (``azimuth_point_times``).
 
 Frame times: one number per line in ``times.txt`` (KITTI odometry) or ``timestamps.txt``
 in the folder, or the file given by option ``timestamps``; otherwise ``index / rate_hz``.
@@ -334,6 +336,11 @@ def scans_sequence(
                 report.skip(str(folder), f"empty scan ({path.name})", float(stamp))
                 continue
             if settings.point_times == "azimuth":
+                if cloud.point_times is not None:
+                    raise InputError(
+                        f"{path}: has per-point times of its own; point_times=azimuth is for "
+                        "clouds without them"
+                    )
                 cloud = replace(cloud, point_times=azimuth_point_times(cloud.points, sweep_s))
             last = stamp
             yield cloud

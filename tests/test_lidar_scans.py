@@ -144,6 +144,12 @@ def test_azimuth_point_times_for_clouds_without_them(tmp_path):
     stored = clouds[0].points
     assert np.allclose(clouds[0].point_times, azimuth_point_times(stored, 0.1), atol=1e-12)
     assert 5.049 < sequence.initial_state.t <= 5.05
+    with_times = tmp_path / "with_times"
+    with_times.mkdir()
+    ((points, times),) = _sweeps(1)
+    _write_pcd(with_times / "000000.pcd", points, times, binary=True)
+    with pytest.raises(InputError, match="000000.pcd: has per-point times of its own"):
+        list(load_dataset(f"scans:{with_times}", 0, {"point_times": "azimuth"}).measurements())
     odometry = [m for m in items if isinstance(m, Odometry)]
     assert [m.t for m in odometry] == pytest.approx(
         [
