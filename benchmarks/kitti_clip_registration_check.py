@@ -38,12 +38,12 @@ MIN_PLANARITY = 0.3
 
 
 def voxel_sample(points: np.ndarray) -> np.ndarray:
-    """One point (the first in the file) per ``VOXEL_M`` voxel of the points within
-    ``RANGE_M``, (m, 3) [m]."""
+    """The points within ``RANGE_M``, one per ``VOXEL_M`` voxel (KISS-ICP's own downsampler,
+    only the sampling: no map, no registration), (m, 3) [m]."""
+    from kiss_icp.voxelization import voxel_down_sample
+
     ranges = np.linalg.norm(points, axis=1)
-    points = points[(ranges > RANGE_M[0]) & (ranges < RANGE_M[1])]
-    _, first = np.unique(np.floor(points / VOXEL_M).astype(np.int64), axis=0, return_index=True)
-    return points[np.sort(first)]
+    return voxel_down_sample(points[(ranges > RANGE_M[0]) & (ranges < RANGE_M[1])], VOXEL_M)
 
 
 class PlaneTarget:

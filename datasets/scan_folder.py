@@ -316,8 +316,8 @@ def scans_sequence(
     if not files:
         raise InputError(f"{folder}: no .bin, .pcd or .ply scans")
     times = frame_times(folder, files, settings)
-    order_problem = np.flatnonzero(np.diff(times) <= 0)
     steps = np.diff(times)
+    order_problem = np.flatnonzero(steps <= 0)
     sweep_s = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0 / settings.rate_hz
     front_end = LidarFrontEnd(settings.front_end_settings())
     source = LidarSource(front_end)

@@ -57,10 +57,10 @@ not motion-compensated predicts 0.17), and taking the clouds as KITTI raw's unco
 sweeps (``scans:`` option ``point_times=azimuth``) leaves -0.18 +- 0.27 deg/s and ekf-slam
 and the smoothers 0.16-0.25 deg from KISS-ICP (sensor-based 0.71 deg). The clip's readme
 says its scans are motion-compensated; these figures say its near corners behave as if they
-were not. On the corridor bag, where KISS-ICP's per-frame yaw errors
-against the truth have mixed signs (0.05 deg RMS), it reads -0.057 +- 0.27 deg/s
-(``workbench simulate lidar-corridor`` with its defaults; the pairs taken as independent
-had said +-0.016 on a bag like it).
+were not. On the corridor bag, where KISS-ICP's per-frame yaw errors against the truth have
+mixed signs (0.05 deg RMS), it reads -0.057 +- 0.27 deg/s (``workbench simulate
+lidar-corridor`` with its defaults; the pairs taken as independent had said +-0.016 on a bag
+like it).
 
 Horizontal only: the corners' height is the slab's (``corners``), so roll, pitch and height
 are not seen; they take the yaw's and the horizontal translation's variance. The fit runs
