@@ -6,7 +6,12 @@ Formats: KITTI ``.bin`` (float32 x, y, z, intensity), ``.pcd`` (``DATA ascii`` o
 a ``time``/``t``/``timestamp``/``offset_time`` field when a PCD/PLY has one (same unit rules
 as bags, ``datasets.bags.pointcloud2``); without one the clouds are taken as
 motion-compensated, unless option ``point_times=azimuth`` derives the times of an
-uncompensated spinning sweep from the azimuths (``azimuth_point_times``).
+uncompensated spinning sweep from the azimuths (``azimuth_point_times``). Which one a folder
+holds is the user's to say: KITTI raw's velodyne_points are not compensated (the real KITTI
+clip in ``../shared/data`` is such a folder, whatever its readme says:
+``benchmarks/kitti_clip_sweep_seam.py``), and the rule is KITTI's, so it is not applied
+unasked. Taken as compensated, an uncompensated sweep shows as the corners disagreeing with
+KISS-ICP's heading, which the run warns about (``LidarFrontEnd.heading_warning``).
 
 Frame times: one number per line in ``times.txt`` (KITTI odometry) or ``timestamps.txt``
 in the folder, or the file given by option ``timestamps``; otherwise ``index / rate_hz``.
@@ -15,7 +20,6 @@ Ground truth: an optional TUM file (option ``ground_truth``).
 
 from __future__ import annotations
 
-import logging
 from dataclasses import replace
 from pathlib import Path
 from typing import Literal
@@ -39,7 +43,6 @@ from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import GroundTruth, StateHistory
 from datasets.trajectory_io import read_tum
 
-log = logging.getLogger(__name__)
 SUFFIXES = (".bin", ".pcd", ".ply")
 _PCD_TYPES = {
     ("F", 4): "f4",
@@ -347,6 +350,9 @@ def scans_sequence(
 
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
     reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
+    # datasets.Sequence metadata "warnings" (printed, and in every run's metrics.json): the
+    # stream's skips and the front end's heading warning, once the stream has run
+    warnings: list[str] = []
 
     # the sequence starts at the front end's first pose (the first kept scan's; its sweep's
     # end when it is deskewed), where the first odometry increment starts; datasets.bags
@@ -365,8 +371,10 @@ def scans_sequence(
         )
         resolved.update(front_end.resolved())
         reobservation.update(front_end.tracker.stats.summary())
-        for line in source.report.lines():
-            log.warning("%s", line)
+        heading = front_end.heading_warning()
+        for line in [*source.report.lines(), *([heading] if heading else [])]:
+            if line not in warnings:  # once, however often the stream is read
+                warnings.append(line)
 
     ground_truth = None
     if settings.ground_truth:
@@ -398,6 +406,7 @@ def scans_sequence(
             "corner_reobservation": reobservation,  # filled once the stream has run
             "time_order_problems": int(order_problem.size),
             "options": settings.model_dump(mode="json"),
+            "warnings": warnings,
         },
     ), source
 

@@ -336,8 +336,12 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         )
         resolved.update(front_end.resolved())
         reobservation.update(front_end.tracker.stats.summary())
-        # the stream's skips join the warnings (once, however often the stream is read)
-        warnings.extend(line for line in report.lines() if line not in warnings)
+        # the stream's skips and the front end's heading warning join the warnings (once,
+        # however often the stream is read)
+        heading = front_end.heading_warning()
+        for line in [*report.lines(), *([heading] if heading else [])]:
+            if line not in warnings:
+                warnings.append(line)
 
     sensors = {Sensor.POINT_CLOUD} if settings.point_clouds else set()
     sensors |= {Sensor.IMU} if imu_topic else set()

@@ -55,9 +55,12 @@ corners' along-track residuals grow with the change of their azimuth between sig
 (0.24 cm per degree, correlation 0.52; a clockwise 10 Hz sweep at the clip's 6 m/s that is
 not motion-compensated predicts 0.17), and taking the clouds as KITTI raw's uncompensated
 sweeps (``scans:`` option ``point_times=azimuth``) leaves -0.18 +- 0.27 deg/s and ekf-slam
-and the smoothers 0.16-0.25 deg from KISS-ICP (sensor-based 0.71 deg). The clip's readme
-says its scans are motion-compensated; these figures say its near corners behave as if they
-were not. On the corridor bag, where KISS-ICP's per-frame yaw errors against the truth have
+and the smoothers 0.16-0.25 deg from KISS-ICP. The clip's readme says its scans are
+motion-compensated; they are not: a compensated sweep shows a range step where its first and
+last points meet (0.61 m behind the car at the clip's speed, measured on the clip after a
+synthetic compensation), and the clip's ground rings show none larger than 2.3 cm anywhere
+round (``benchmarks/kitti_clip_sweep_seam.py``). The front end warns when clouds without
+per-point times disagree with KISS-ICP like this (``LidarFrontEnd.heading_warning``). On the corridor bag, where KISS-ICP's per-frame yaw errors against the truth have
 mixed signs (0.05 deg RMS), it reads -0.057 +- 0.27 deg/s (``workbench simulate
 lidar-corridor`` with its defaults; the pairs taken as independent had said +-0.016 on a bag
 like it).
