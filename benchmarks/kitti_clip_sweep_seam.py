@@ -9,7 +9,7 @@ the other, each from straight ahead counterclockwise), the ranges of neighbourin
 azimuth are differenced, and the median difference across the rings and the clip's frames is
 taken in 2 deg azimuth windows all round. A compensated seam anywhere but within a few
 degrees of the sides would stand out from the windows' typical 5 mm. The same measurement on
-the clouds after a synthetic compensation (KITTI raw's timing, ``datasets.scan_folder
+the clouds after a synthetic compensation (KITTI raw's timing, ``datasets.lidar.sweep_times
 .azimuth_point_times``: the seam behind; 0.61 m forward per sweep, the clip's speed) shows the
 step the test looks for.
 
@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from datasets.lidar.kiss_icp_odometry import deskew_to_end
-from datasets.scan_folder import azimuth_point_times, read_scan
+from datasets.lidar.sweep_times import azimuth_point_times
+from datasets.scan_folder import read_scan
 
 CLIP = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti-hdl64-clip"
 WINDOW_DEG = 2.0

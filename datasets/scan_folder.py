@@ -6,7 +6,7 @@ Formats: KITTI ``.bin`` (float32 x, y, z, intensity), ``.pcd`` (``DATA ascii`` o
 a ``time``/``t``/``timestamp``/``offset_time`` field when a PCD/PLY has one (same unit rules
 as bags, ``datasets.bags.pointcloud2``); without one the clouds are taken as
 motion-compensated, unless option ``point_times=azimuth`` derives the times of an
-uncompensated spinning sweep from the azimuths (``azimuth_point_times``). Which one a folder
+uncompensated spinning sweep from the azimuths (``datasets.lidar.sweep_times``). Which one a folder
 holds is the user's to say: KITTI raw's velodyne_points are not compensated (the real KITTI
 clip in ``../shared/data`` is such a folder, whatever its readme says:
 ``benchmarks/kitti_clip_sweep_seam.py``), and the rule is KITTI's, so it is not applied
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 from pydantic import ConfigDict, Field
@@ -37,6 +36,7 @@ from datasets.lidar.frontend import (
     with_front_end,
 )
 from datasets.lidar.kiss_icp_odometry import pose_time
+from datasets.lidar.sweep_times import azimuth_times_of
 from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model
 from datasets.sequence import InitialState, NoiseSpec, Sequence
@@ -87,15 +87,6 @@ class ScanFolderOptions(LidarSourceOptions):
     )
     rate_hz: float = Field(10.0, gt=0, description="frame rate when there is no timestamps file")
     ground_truth: str | None = Field(None, description="TUM file of true poses")
-    point_times: Literal["field", "azimuth"] = Field(
-        "field",
-        description="per-point times: 'field', from a time field where a file has one (none "
-        "otherwise: the clouds are taken as motion-compensated); 'azimuth', from each point's "
-        "azimuth, for clouds of a spinning lidar that are not motion-compensated and carry no "
-        "times: a clockwise sweep from behind over one frame interval, the frame's stamp at "
-        "mid-sweep facing forward (KITTI raw's velodyne_points; KISS-ICP's KITTI-raw loader "
-        "computes the same)",
-    )
 
 
 def _cloud_from_records(
@@ -258,20 +249,6 @@ def read_scan(path: Path, stamp: float, time_unit: str = "auto") -> PointCloud:
     return PointCloud(t=stamp, points=points, point_times=times)
 
 
-def azimuth_point_times(points: np.ndarray, sweep_s: float) -> np.ndarray:
-    """Per-point times [s] relative to the frame's stamp, (n,), of a spinning lidar's cloud
-    that carries none: ``-atan2(y, x) / (2 pi) * sweep_s``, a clockwise sweep seen from above
-    that starts behind (azimuth +180 deg, ``-sweep_s / 2``), faces forward at the stamp and
-    ends behind (``+sweep_s / 2``). This is KITTI raw's timing: its velodyne_points are not
-    motion-compensated, and the camera is triggered as the sensor faces forward (the raw
-    data's readme; KISS-ICP's KITTI-raw loader uses the same rule).
-
-    Args:
-        points: (n, 3) [m], sensor frame (x forward, y left, z up). sweep_s: one revolution [s].
-    """
-    return -np.arctan2(points[:, 1], points[:, 0]) / (2.0 * np.pi) * sweep_s
-
-
 def frame_times(folder: Path, files: list[Path], settings: ScanFolderOptions) -> np.ndarray:
     """Frame times [s] (module docstring); ``InputError`` for a bad or short timestamps file."""
     candidates = (
@@ -339,12 +316,8 @@ def scans_sequence(
                 report.skip(str(folder), f"empty scan ({path.name})", float(stamp))
                 continue
             if settings.point_times == "azimuth":
-                if cloud.point_times is not None:
-                    raise InputError(
-                        f"{path}: has per-point times of its own; point_times=azimuth is for "
-                        "clouds without them"
-                    )
-                cloud = replace(cloud, point_times=azimuth_point_times(cloud.points, sweep_s))
+                derived = azimuth_times_of(cloud.points, cloud.point_times, sweep_s, str(path))
+                cloud = replace(cloud, point_times=derived)
             last = stamp
             yield cloud
 

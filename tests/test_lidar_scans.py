@@ -120,7 +120,7 @@ def test_azimuth_point_times_for_clouds_without_them(tmp_path):
     sweep, from behind (-T/2) through forward (the stamp) to behind again (+T/2), T the
     frame interval; the front end then deskews with them, so the sequence starts at the
     first sweep's end, half a frame after its stamp."""
-    from datasets.scan_folder import azimuth_point_times
+    from datasets.lidar.sweep_times import azimuth_point_times
 
     bearings = np.radians([179.0, 90.0, 0.0, -90.0, -179.0])
     points = np.column_stack([np.cos(bearings), np.sin(bearings), np.zeros(5)])

@@ -33,6 +33,7 @@ from datasets.bags.gps import geodetic_to_enu
 from datasets.bags.pointcloud2 import decode_pointcloud2
 from datasets.errors import InputError
 from datasets.lidar.kiss_icp_odometry import pose_time
+from datasets.lidar.sweep_times import azimuth_times_of, sweep_period
 from datasets.measurements import GpsFix, ImuSample, Measurement, PointCloud
 from datasets.text_files import check_regular_file
 
@@ -364,6 +365,8 @@ class ReadSettings:
     base to trim to, if any."""
 
     time_unit: str = "auto"
+    # point_times=azimuth: the sweep [s] over which clouds without times are timed by azimuth
+    azimuth_sweep_s: float | None = None
     lidar_to_body: np.ndarray | None = None  # (4, 4) extrinsic applied to every cloud
     gps_origin: tuple[float, float, float] | None = None
     gps_sigma_m: float = 1.0
@@ -391,10 +394,10 @@ def convert(
         if cloud.points.shape[0] == 0:
             report.skip(topic, "empty cloud (no finite points)", stamp)
             return None
-        points = cloud.points
-        if settings.lidar_to_body is not None:
+        points, times = cloud.points, cloud_times(cloud, settings.azimuth_sweep_s, where)
+        if settings.lidar_to_body is not None:  # after the azimuths: they are the lidar's
             points = points @ settings.lidar_to_body[:3, :3].T + settings.lidar_to_body[:3, 3]
-        return PointCloud(t=stamp, points=points, point_times=cloud.point_times)
+        return PointCloud(t=stamp, points=points, point_times=times)
     if msgtype == IMU:
         gyro, accel = _vector(message.angular_velocity), _vector(message.linear_acceleration)
         if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(accel))):
@@ -503,8 +506,33 @@ def read_stream(
     check_skips(path, topics, settings.max_skipped_fraction, report)
 
 
+def cloud_times(cloud, azimuth_sweep_s: float | None, where: str) -> np.ndarray | None:
+    """The per-point times [s] a decoded cloud is read with: its own, or with
+    ``azimuth_sweep_s`` set (``point_times=azimuth``) those of its lidar-frame azimuths
+    (``datasets.lidar.sweep_times``; ``InputError`` naming ``where`` for a cloud that has
+    its own)."""
+    if azimuth_sweep_s is None:
+        return cloud.point_times
+    return azimuth_times_of(cloud.points, cloud.point_times, azimuth_sweep_s, where)
+
+
+def lidar_sweep_period(reader, path: Path, topic: str, frames: int = 21) -> float:
+    """One sweep of ``topic`` [s] for ``point_times=azimuth``: the median interval of the
+    header stamps of its first ``frames`` messages (``InputError`` when they give none)."""
+    stamps = []
+    for _, _, stamp, _ in iter_messages(reader, path, [topic]):
+        stamps.append(stamp)
+        if len(stamps) >= frames:
+            break
+    return sweep_period(np.array(stamps), f"{path}, topic {topic}")
+
+
 def topic_spans(
-    reader, path: Path, topics: list[str], time_unit: str = "auto"
+    reader,
+    path: Path,
+    topics: list[str],
+    time_unit: str = "auto",
+    azimuth_sweep_s: float | None = None,
 ) -> dict[str, tuple[float, float]]:
     """``{topic: (first, last)}`` header stamps [s] of each topic that has messages, read
     from the two ends of the bag only: the first message of each topic in log order (what
@@ -549,7 +577,8 @@ def topic_spans(
         if msgtype == POINTCLOUD2:
             where = f"{path}, topic {topic}, t={stamp:.9f}"
             try:
-                times = decode_pointcloud2(message, stamp, where, time_unit).point_times
+                cloud = decode_pointcloud2(message, stamp, where, time_unit)
+                times = cloud_times(cloud, azimuth_sweep_s, where)
             except InputError:  # the stream reports a broken cloud where it meets it
                 times = None
             if times is not None and times.size:
@@ -565,6 +594,7 @@ def start_at_first_pose(
     lidar_topic: str,
     time_unit: str = "auto",
     deskew: bool = True,
+    azimuth_sweep_s: float | None = None,
 ) -> TimeBase:
     """``time_base`` starting at the front end's first pose: where the first kept sweep ends
     when it is deskewed (``datasets.lidar.kiss_icp_odometry``: a frame's pose is at its
@@ -582,13 +612,14 @@ def start_at_first_pose(
     for topic, msgtype, stamp, message in iter_messages(reader, path, [lidar_topic]):
         if msgtype != POINTCLOUD2 or stamp < time_base.start_s:
             continue
+        where = f"{path}, topic {topic}, t={stamp:.9f}"
         try:
-            cloud = decode_pointcloud2(message, stamp, f"{path}, topic {topic}", time_unit)
+            cloud = decode_pointcloud2(message, stamp, where, time_unit)
         except InputError:  # the stream reports a broken cloud where it meets it
             continue
         if not len(cloud.points):
             continue
-        end = pose_time(stamp, cloud.point_times, deskew)
+        end = pose_time(stamp, cloud_times(cloud, azimuth_sweep_s, where), deskew)
         if end == time_base.start_s and stamp == time_base.start_s:
             return time_base
         if end > time_base.end_s:

@@ -44,6 +44,7 @@ from datasets.bags.reader import (
     discover_topics,
     first_gps_origin,
     iter_messages,
+    lidar_sweep_period,
     open_bag,
     read_ground_truth,
     read_stream,
@@ -268,8 +269,17 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         imu_rate, gyro_density, accel_density = _imu_noise(reader, imu_topic, path)
         if imu_rate:
             rates["imu"] = float(imu_rate)
+        azimuth_sweep_s = (
+            lidar_sweep_period(reader, path, topics.lidar)
+            if settings.point_times == "azimuth"
+            else None
+        )
         spans = topic_spans(
-            reader, path, [t for t in (topics.lidar, imu_topic) if t], settings.point_time_unit
+            reader,
+            path,
+            [t for t in (topics.lidar, imu_topic) if t],
+            settings.point_time_unit,
+            azimuth_sweep_s,
         )
     load_report = ReadReport()
     gt = (
@@ -295,12 +305,14 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
                 topics.lidar,
                 settings.point_time_unit,
                 deskew=settings.kiss.deskew,
+                azimuth_sweep_s=azimuth_sweep_s,
             )
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
     ground_truth = _ground_truth(*gt, truth)
     read_settings = ReadSettings(
         time_unit=settings.point_time_unit,
+        azimuth_sweep_s=azimuth_sweep_s,
         gps_origin=origin,
         gps_sigma_m=settings.gps_sigma_m,
         reorder_window_s=settings.reorder_window_s,

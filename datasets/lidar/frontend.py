@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -26,6 +27,7 @@ from datasets.lidar.kiss_icp_odometry import (
     deskew_to_end,
     normalized_point_times,
 )
+from datasets.lidar.sweep_times import POINT_TIMES_DESCRIPTION
 from datasets.measurements import Odometry, PointCloud
 from datasets.trajectory import Trajectory
 
@@ -65,6 +67,7 @@ class LidarSourceOptions(BaseModel):
     point_time_unit: str = Field(
         "auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times"
     )
+    point_times: Literal["field", "azimuth"] = Field("field", description=POINT_TIMES_DESCRIPTION)
     point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
     max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
     odometry: bool = Field(True, description="KISS-ICP odometry")
