@@ -7,27 +7,27 @@ every estimator must follow KISS-ICP's trajectory (dead reckoning composes its i
 closely on each.
 
 Measured on the current code (identical on all three sources; max position deviation from
-KISS-ICP [m], share of KISS-ICP's path length [%], max yaw deviation [deg]):
+KISS-ICP [m], share of KISS-ICP's path length [%], max yaw deviation [deg]), with the clouds
+read as the clip's readme says (motion-compensated, the default) and as what they are (KITTI
+raw's uncompensated sweeps, ``point_times=azimuth``: ``benchmarks/kitti_clip_sweep_seam.py``):
 
-    estimator            max dev [m]  % path  max yaw [deg]
-    dead-reckoning             0.000    0.00          0.000   (the reference itself)
-    ekf-slam                   0.054    0.29          0.703
-    sensor-based               0.115    0.62          0.805
-    smoother-isam2             0.054    0.29          0.698
-    smoother-fixed-lag         0.054    0.29          0.698
-    smoother-batch             0.046    0.25          0.697   (smoothed history)
+                         as compensated              point_times=azimuth
+    estimator            max dev  % path  max yaw    max dev  % path  max yaw
+    dead-reckoning         0.000    0.00    0.000      0.000    0.00    0.000  (the reference)
+    ekf-slam               0.054    0.29    0.703      0.062    0.33    0.251
+    sensor-based           0.047    0.25    0.767      0.117    0.62    0.236
+    smoother-isam2         0.054    0.29    0.698      0.062    0.33    0.244
+    smoother-fixed-lag     0.054    0.29    0.698      0.062    0.33    0.244
+    smoother-batch         0.046    0.25    0.697      0.059    0.31    0.158  (smoothed)
 
 KISS-ICP's path over the clip is about 18.5 m. (The same figures as
 benchmarks/bench_lidar_clip.py prints for ``scans:``.)
 
-The issue asks for yaw within 0.5 deg; the estimators deviate 0.70-0.81 deg from KISS-ICP on
-this clip, so yaw is held to 1.0 deg here. KISS-ICP's increments carry the stated 0.002 rad
-per frame: the front end's fit from the corners' re-observations (``datasets.lidar
-.increment_noise``) reads 0 rad, but the clip's 123 re-observations cannot resolve it, so the
-stated default stands; with `--data kiss.rotation_sigma_rad=0.0001` the estimators read
-0.05 deg (0.22 sensor-based), 0.32-0.67 % of the path, NIS per dof 0.73-0.76 (0.44-0.53
-with the default).
-Position is held to 1 % of the path.
+The issue asks for yaw within 0.5 deg. Read as compensated, the corners disagree with
+KISS-ICP's heading (-0.41 +- 0.10 deg/s; the run warns, naming the option) and the
+estimators, following them, end 0.70-0.77 deg off, so yaw is held to 1.0 deg there; read as
+uncompensated sweeps every estimator is within 0.26 deg, held to 0.5. Position is held to 1 %
+of the path either way.
 """
 
 from __future__ import annotations
@@ -51,7 +51,8 @@ PERIOD_NS = 100_000_000  # 10 Hz
 TOPIC = "/velodyne_points"
 SOURCES = ("scans", "ros1", "ros2")
 POSITION_SHARE_PERCENT = 1.0
-YAW_DEG = 1.0  # the issue asks 0.5 deg; the filters sit at ~0.8 deg (module docstring)
+YAW_DEG = 1.0  # read as compensated: the estimators sit at 0.70-0.77 deg (module docstring)
+AZIMUTH_YAW_DEG = 0.5  # the issue's bound, read as uncompensated sweeps
 
 
 def _pointcloud2(typestore, ros1: bool, points: np.ndarray, stamp_ns: int):
@@ -133,8 +134,7 @@ def _deviation(reference, pose) -> tuple[float, float, float]:
     return float(position.max()), 100.0 * float(position.max()) / path, float(max(yaw))
 
 
-@pytest.fixture(scope="module")
-def runs(sources) -> dict[str, dict]:
+def _run_sources(sources: dict[str, str], options: dict[str, str]) -> dict[str, dict]:
     """Per source: the sequence, its stream's odometry and corner counts, and each
     estimator's pose history."""
     from workbench.registry import load_dataset
@@ -142,7 +142,7 @@ def runs(sources) -> dict[str, dict]:
 
     results = {}
     for source, name in sources.items():
-        sequence = load_dataset(name, 0, {})
+        sequence = load_dataset(name, 0, options)
         stream = list(sequence.measurements())
         odometry = [m for m in stream if isinstance(m, Odometry)]
         corners = [m for m in stream if isinstance(m, LandmarkScan)]
@@ -160,6 +160,19 @@ def runs(sources) -> dict[str, dict]:
             "poses": poses,
         }
     return results
+
+
+@pytest.fixture(scope="module")
+def runs(sources) -> dict[str, dict]:
+    """Every source read as the clip's readme says (motion-compensated clouds)."""
+    return _run_sources(sources, {})
+
+
+@pytest.fixture(scope="module")
+def azimuth_runs(sources) -> dict[str, dict]:
+    """Every source read as what the clip is, KITTI raw's uncompensated sweeps
+    (``point_times=azimuth``; ``benchmarks/kitti_clip_sweep_seam.py``)."""
+    return _run_sources(sources, {"point_times": "azimuth"})
 
 
 @pytest.mark.parametrize("source", SOURCES)
@@ -254,3 +267,22 @@ def test_sources_give_every_estimator_the_same_result(runs) -> None:
             )
             dots = np.abs(np.sum(pose.rotations * reference.rotations, axis=1))
             np.testing.assert_allclose(dots, 1.0, atol=1e-9, err_msg=f"{source} {estimator}")
+
+
+@pytest.mark.parametrize("source", SOURCES)
+def test_read_as_uncompensated_sweeps_every_estimator_meets_the_bounds(
+    azimuth_runs, source
+) -> None:
+    """With the clip read as what it is (``point_times=azimuth``), every estimator stays
+    within 1 % of KISS-ICP's path and 0.5 deg of its yaw, on the folder and on both bags,
+    and the corners' re-observation NIS per dof is within 0.7-1.5."""
+    run = azimuth_runs[source]
+    reference = run["poses"]["dead-reckoning"]
+    figures = {name: _deviation(reference, pose) for name, pose in run["poses"].items()}
+    print(source, {k: tuple(round(v, 3) for v in f) for k, f in figures.items()})
+    for estimator, (deviation, share, yaw) in figures.items():
+        assert share < POSITION_SHARE_PERCENT, (source, estimator, deviation, share)
+        assert yaw < AZIMUTH_YAW_DEG, (source, estimator, yaw)
+    nis = run["sequence"].metadata["corner_reobservation"]["reobservation_nis_per_dof"]
+    assert nis is not None and 0.7 <= nis <= 1.5, (source, nis)
+    assert run["sequence"].metadata["warnings"] == [], source

@@ -47,6 +47,40 @@ def test_anchoring_on_the_earth_map_removes_the_drift_of_composed_increments() -
     assert error_anchored.max() < 0.2
 
 
+def test_landmarks_not_yet_confirmed_neither_enter_the_earth_map_nor_move_the_pose() -> None:
+    """A landmark below the management's sighting count may be a duplicate whose position
+    has been dead-reckoned since its one sighting (on the real KITTI clip one such pair
+    stepped the Earth heading by 0.65 deg): it is only remembered, never aligned on."""
+    covariances = np.repeat(np.eye(2)[None] * 0.01**2, len(WORLD) + 1, axis=0)
+    ids = np.arange(len(WORLD) + 1)
+    confirmed = np.r_[np.ones(len(WORLD), dtype=bool), False]
+    headings = np.linspace(0.0, 0.6, 7)
+    trackers = {
+        "rule": EarthFrameTracker(2, np.eye(2), np.zeros(2)),
+        "everything": EarthFrameTracker(2, np.eye(2), np.zeros(2)),
+    }
+    for k, heading in enumerate(headings):
+        position = np.array([0.5 * k, 0.1 * k])
+        seen = _body(WORLD, heading, position)
+        # the unconfirmed landmark: where a wrongly moved duplicate would be, 0.4 m further
+        # off at every snapshot
+        stray = _body(np.array([[6.0 + 0.4 * k, -1.0]]), heading, position)
+        positions = np.vstack([seen, stray])
+        for name, tracker in trackers.items():
+            usable = confirmed if name == "rule" else None
+            tracker.step(ids, positions, covariances, np.eye(2), np.zeros(2), usable)
+    rule, everything = trackers["rule"], trackers["everything"]
+    assert len(WORLD) not in rule.earth_map and len(WORLD) in everything.earth_map
+    true_heading, true_position = headings[-1], np.array([3.0, 0.6])
+    assert abs(_heading(rule) - true_heading) < 1e-9
+    np.testing.assert_allclose(rule.position, true_position, atol=1e-9)
+    assert abs(_heading(everything) - true_heading) > 1e-3  # what the rule prevents
+
+
+def _heading(tracker: EarthFrameTracker) -> float:
+    return float(np.arctan2(tracker.rotation[1, 0], tracker.rotation[0, 0]))
+
+
 def test_sensor_based_uses_odometry_as_a_velocity_measurement_and_says_so() -> None:
     from datasets.victoria_park import default_path, load
     from filters.sensor_based.config import SensorBasedConfig

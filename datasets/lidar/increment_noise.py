@@ -54,8 +54,8 @@ estimators' 0.7 deg is an error taken from the corners. What points at the cause
 corners' along-track residuals grow with the change of their azimuth between sightings
 (0.24 cm per degree, correlation 0.52; a clockwise 10 Hz sweep at the clip's 6 m/s that is
 not motion-compensated predicts 0.17), and taking the clouds as KITTI raw's uncompensated
-sweeps (``scans:`` option ``point_times=azimuth``) leaves -0.18 +- 0.27 deg/s and ekf-slam
-and the smoothers 0.16-0.25 deg from KISS-ICP. The clip's readme says its scans are
+sweeps (``scans:`` option ``point_times=azimuth``) leaves -0.18 +- 0.27 deg/s and every
+estimator 0.16-0.25 deg from KISS-ICP. The clip's readme says its scans are
 motion-compensated; they are not: a compensated sweep shows a range step where its first and
 last points meet (0.61 m behind the car at the clip's speed, measured on the clip after a
 synthetic compensation), and the clip's ground rings show none larger than 2.3 cm anywhere

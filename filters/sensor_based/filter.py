@@ -511,7 +511,23 @@ class SensorBasedSlam:
             # keyed by map id: a deleted landmark mapped again starts a new Earth entry
             # (keyed by its scan id instead, UTIAS robot 5 read 0.46 m ATE against 0.24 m:
             # old entries carry the pose error of their time)
-            self.earth.step(ids, positions, blocks, self._motion_rotation, self._motion_translation)
+            # only landmarks past the management's sighting count fix the Earth frame
+            # (``earth_frame``: a once-seen landmark may be a duplicate, dead-reckoned since)
+            confirmed = np.array(
+                [
+                    self.manager.records[int(i)].observations >= self.config.min_observations
+                    for i in ids
+                ],
+                dtype=bool,
+            )
+            self.earth.step(
+                ids,
+                positions,
+                blocks,
+                self._motion_rotation,
+                self._motion_translation,
+                confirmed,
+            )
             self._motion_rotation, self._motion_translation = np.eye(d), np.zeros(d)
             self._record_pose(t)
         if self.recorder.snapshot_due(t):
