@@ -82,7 +82,7 @@ from filters.sensor_based.config import (
 )
 from filters.sensor_based.directions import direction_covariance, match_direction
 from filters.sensor_based.dynamics import ProcessNoise, propagate_in_place, rate_dimension
-from filters.sensor_based.earth_frame import EarthFrameTracker
+from filters.sensor_based.earth_frame import EARTH_MIN_SIGHTINGS, EarthFrameTracker
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
 from filters.sensor_based.loop_closing import (
     LoopClosurePolicy,
@@ -511,13 +511,10 @@ class SensorBasedSlam:
             # keyed by map id: a deleted landmark mapped again starts a new Earth entry
             # (keyed by its scan id instead, UTIAS robot 5 read 0.46 m ATE against 0.24 m:
             # old entries carry the pose error of their time)
-            # only landmarks past the management's sighting count fix the Earth frame
-            # (``earth_frame``: a once-seen landmark may be a duplicate, dead-reckoned since)
+            # only re-sighted landmarks fix the Earth frame (``earth_frame``: a once-seen
+            # landmark may be a duplicate, dead-reckoned since)
             confirmed = np.array(
-                [
-                    self.manager.records[int(i)].observations >= self.config.min_observations
-                    for i in ids
-                ],
+                [self.manager.records[int(i)].observations >= EARTH_MIN_SIGHTINGS for i in ids],
                 dtype=bool,
             )
             self.earth.step(
