@@ -6,9 +6,9 @@ Formats: KITTI ``.bin`` (float32 x, y, z, intensity), ``.pcd`` (``DATA ascii`` o
 a ``time``/``t``/``timestamp``/``offset_time`` field when a PCD/PLY has one (same unit rules
 as bags, ``datasets.bags.pointcloud2``); without one the clouds are taken as
 motion-compensated, unless option ``point_times=azimuth`` derives the times of an
-uncompensated spinning sweep from the azimuths (``datasets.lidar.sweep_times``). Which one a folder
-holds is the user's to say: KITTI raw's velodyne_points are not compensated (the real KITTI
-clip in ``../shared/data`` is such a folder, whatever its readme says:
+uncompensated spinning sweep from the azimuths (``datasets.lidar.sweep_times``). Which one
+a folder holds is the user's to say: KITTI raw's velodyne_points are not compensated (the
+real KITTI clip in ``../shared/data`` is such a folder, whatever its readme says:
 ``benchmarks/kitti_clip_sweep_seam.py``), and the rule is KITTI's, so it is not applied
 unasked. Taken as compensated, an uncompensated sweep shows as the corners disagreeing with
 KISS-ICP's heading, which the run warns about (``LidarFrontEnd.heading_warning``).
