@@ -237,6 +237,16 @@ def test_bags_have_no_invented_truth(runs, source) -> None:
 
 
 @pytest.mark.parametrize("source", SOURCES)
+def test_read_as_compensated_every_source_warns_naming_the_option(runs, source) -> None:
+    """The clouds carry no per-point times and their corners disagree with KISS-ICP's
+    heading beyond three standard errors: the folder and both bags say so (printed, and in
+    every run's metrics.json)."""
+    warnings = runs[source]["sequence"].metadata["warnings"]
+    heading = [line for line in warnings if "disagree with KISS-ICP's heading" in line]
+    assert len(heading) == 1 and "point_times=azimuth" in heading[0], warnings
+
+
+@pytest.mark.parametrize("source", SOURCES)
 def test_corner_reobservation_nis_is_consistent(runs, source) -> None:
     summary = runs[source]["sequence"].metadata["corner_reobservation"]
     nis = summary["reobservation_nis_per_dof"]

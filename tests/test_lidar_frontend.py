@@ -135,3 +135,29 @@ def test_workbench_bag_twice_gives_the_same_table(tmp_path: Path, capsys) -> Non
         tables.append(non_timing_columns((out / "table.csv").read_text()))
     capsys.readouterr()
     assert tables[0] == tables[1] and len(tables[0]) >= 2
+
+
+def test_heading_warning_only_for_untimed_clouds_and_a_significant_disagreement(
+    monkeypatch,
+) -> None:
+    """The rule of ``LidarFrontEnd.heading_warning`` on its own: clouds mostly without
+    per-point times, and a corner yaw-rate disagreement beyond three standard errors."""
+    from datasets.lidar.frontend import FrontEndFrame, FrontEndSettings, LidarFrontEnd
+
+    def front_end(untimed: int, rate_deg_s: float, error_deg_s: float) -> LidarFrontEnd:
+        made = LidarFrontEnd(FrontEndSettings())
+        made.frames = [
+            FrontEndFrame(0.1 * k, 0.1 * k, 1000, np.eye(4), None, None, 0.0, 0.0)
+            for k in range(10)
+        ]
+        made.untimed_frames = untimed
+        disagreement = (np.deg2rad(rate_deg_s), np.deg2rad(error_deg_s))
+        monkeypatch.setattr(made, "corner_yaw_rate", lambda: disagreement)
+        return made
+
+    text = front_end(10, -0.41, 0.10).heading_warning()
+    assert text is not None and "-0.41 +- 0.10 deg/s" in text and "10 of 10 clouds" in text
+    assert "point_times=azimuth" in text
+    assert front_end(10, -0.29, 0.10).heading_warning() is None  # within 3 standard errors
+    assert front_end(4, -0.41, 0.10).heading_warning() is None  # most clouds carry times
+    assert front_end(5, 0.41, 0.10).heading_warning() is not None  # either sign, half untimed
