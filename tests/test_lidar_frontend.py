@@ -141,8 +141,16 @@ def test_heading_warning_only_for_untimed_clouds_and_a_significant_disagreement(
     monkeypatch,
 ) -> None:
     """The rule of ``LidarFrontEnd.heading_warning`` on its own: clouds mostly without
-    per-point times, and a corner yaw-rate disagreement beyond three standard errors."""
-    from datasets.lidar.frontend import FrontEndFrame, FrontEndSettings, LidarFrontEnd
+    per-point times, and a corner yaw-rate disagreement beyond three standard errors, fitted
+    over the first ``HEADING_CHECK_FRAMES`` frames and once per number of frames."""
+    from datasets.lidar.frontend import (
+        HEADING_CHECK_FRAMES,
+        FrontEndFrame,
+        FrontEndSettings,
+        LidarFrontEnd,
+    )
+
+    calls = []
 
     def front_end(untimed: int, rate_deg_s: float, error_deg_s: float) -> LidarFrontEnd:
         made = LidarFrontEnd(FrontEndSettings())
@@ -152,11 +160,15 @@ def test_heading_warning_only_for_untimed_clouds_and_a_significant_disagreement(
         ]
         made.untimed_frames = untimed
         disagreement = (np.deg2rad(rate_deg_s), np.deg2rad(error_deg_s))
-        monkeypatch.setattr(made, "corner_yaw_rate", lambda: disagreement)
+        monkeypatch.setattr(
+            made, "corner_yaw_rate", lambda frames=None: calls.append(frames) or disagreement
+        )
         return made
 
-    text = front_end(10, -0.41, 0.10).heading_warning()
+    warned = front_end(10, -0.41, 0.10)
+    text = warned.heading_warning()
     assert text is not None and "-0.41 +- 0.10 deg/s" in text and "10 of 10 clouds" in text
+    assert warned.heading_warning() == text and calls == [HEADING_CHECK_FRAMES]
     assert "point_times=azimuth" in text
     assert front_end(10, -0.29, 0.10).heading_warning() is None  # within 3 standard errors
     assert front_end(4, -0.41, 0.10).heading_warning() is None  # most clouds carry times
