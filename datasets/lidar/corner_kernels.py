@@ -2,15 +2,17 @@
 steps of Pavlidis and Horowitz, one segment at a time.
 
 Why compiled: both steps are loops whose length the scan decides (a KITTI scan takes about
-ten split levels and fifty merges), and in numpy each iteration is a handful of array calls
-on a few hundred points, so the calls' overhead is the cost: 0.9 ms of the front end's
-per-frame 2.7 ms on the real KITTI clip. Compiled, they cost a few tens of microseconds.
+ten split levels and tens of merges), and in numpy or Python each iteration is a handful of
+calls on a few hundred points, so the calls' overhead is the cost: 0.9 ms of the front
+end's per-frame 2.7 ms on the real KITTI clip. With these kernels ``scan_corners`` takes
+0.39 ms a KITTI scan instead of 0.96 (warm caches).
 
-Each kernel repeats the numpy formulation's arithmetic operation for operation (the same
-expressions in the same order), so its segments are the same to the bit: the tests compare
-them with a plain-Python reference on the real clip and on synthetic scans
-(``tests/test_corner_kernels.py``). Compiled once per machine (``cache=True``: numba keeps
-the machine code next to this file).
+Each kernel repeats the arithmetic of the numpy and Python code it replaced operation for
+operation (the same expressions in the same order), so its segments are the same to the
+bit: the tests compare them with a plain-Python reference on the real clip and on random
+polylines (``tests/test_corner_kernels.py``). Compiled once per machine and cached
+(``cache=True``: numba keeps the machine code beside this file, or in its user cache where
+that is read-only): 6.5 s the first time, 0.15 s to load.
 """
 
 from __future__ import annotations

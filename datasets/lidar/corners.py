@@ -15,8 +15,8 @@ are compiled: ``corner_kernels``):
 4. **Split-and-merge** (Pavlidis and Horowitz 1974, "Segmentation of plane curves", the
    sensor-based paper's ref. [35]): a segment whose farthest point lies more than
    ``split_threshold_m`` from its end-point chord is split there (iterative end-point fit);
-   then adjacent segments whose joint total-least-squares
-   fit has an RMS residual below ``merge_rms_m`` are merged.
+   then adjacent segments whose joint total-least-squares fit has an RMS residual below
+   ``merge_rms_m`` are merged.
 5. **Lines**: total least squares per segment (``end_trim_points`` trimmed at each end, where
    the two faces of a corner mix). Guerreiro et al. (Sec. VI) fit lines with a reduced-space
    Hough transform instead; TLS is the closed-form choice here, with a first-order covariance.
