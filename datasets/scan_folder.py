@@ -344,10 +344,7 @@ def scans_sequence(
         )
         resolved.update(front_end.resolved())
         reobservation.update(front_end.tracker.stats.summary())
-        heading = front_end.heading_warning()
-        for line in [*source.report.lines(), *([heading] if heading else [])]:
-            if line not in warnings:  # once, however often the stream is read
-                warnings.append(line)
+        source.record_warnings(warnings)
 
     ground_truth = None
     if settings.ground_truth:

@@ -159,6 +159,14 @@ class LidarSource:
         self.front_end = front_end
         self.report = ReadReport()
 
+    def record_warnings(self, warnings: list[str]) -> None:
+        """Add the last pass's skips and the front end's heading warning to ``warnings``
+        (``datasets.Sequence`` metadata), each once however often the stream is read."""
+        heading = self.front_end.heading_warning()
+        for line in [*self.report.lines(), *([heading] if heading else [])]:
+            if line not in warnings:
+                warnings.append(line)
+
 
 def extrinsic_matrix(pose: tuple[float, ...] | None) -> np.ndarray | None:
     """[x, y, z, qw, qx, qy, qz] -> (4, 4), or None; ``InputError`` for a zero quaternion."""
@@ -348,12 +356,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         )
         resolved.update(front_end.resolved())
         reobservation.update(front_end.tracker.stats.summary())
-        # the stream's skips and the front end's heading warning join the warnings (once,
-        # however often the stream is read)
-        heading = front_end.heading_warning()
-        for line in [*report.lines(), *([heading] if heading else [])]:
-            if line not in warnings:
-                warnings.append(line)
+        source.record_warnings(warnings)
 
     sensors = {Sensor.POINT_CLOUD} if settings.point_clouds else set()
     sensors |= {Sensor.IMU} if imu_topic else set()
