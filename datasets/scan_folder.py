@@ -36,7 +36,7 @@ from datasets.lidar.frontend import (
     with_front_end,
 )
 from datasets.lidar.kiss_icp_odometry import pose_time
-from datasets.lidar.sweep_times import azimuth_times_of
+from datasets.lidar.sweep_times import point_times_for
 from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model
 from datasets.sequence import InitialState, NoiseSpec, Sequence
@@ -298,7 +298,12 @@ def scans_sequence(
     times = frame_times(folder, files, settings)
     steps = np.diff(times)
     order_problem = np.flatnonzero(steps <= 0)
-    sweep_s = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0 / settings.rate_hz
+    # point_times=azimuth: one sweep is one frame interval
+    azimuth_sweep_s = (
+        (float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0 / settings.rate_hz)
+        if settings.point_times == "azimuth"
+        else None
+    )
     front_end = LidarFrontEnd(settings.front_end_settings())
     source = LidarSource(front_end)
 
@@ -315,8 +320,10 @@ def scans_sequence(
             if len(cloud.points) == 0:
                 report.skip(str(folder), f"empty scan ({path.name})", float(stamp))
                 continue
-            if settings.point_times == "azimuth":
-                derived = azimuth_times_of(cloud.points, cloud.point_times, sweep_s, str(path))
+            if azimuth_sweep_s is not None:
+                derived = point_times_for(
+                    cloud.points, cloud.point_times, azimuth_sweep_s, str(path)
+                )
                 cloud = replace(cloud, point_times=derived)
             last = stamp
             yield cloud

@@ -33,7 +33,7 @@ from datasets.bags.gps import geodetic_to_enu
 from datasets.bags.pointcloud2 import decode_pointcloud2
 from datasets.errors import InputError
 from datasets.lidar.kiss_icp_odometry import pose_time
-from datasets.lidar.sweep_times import azimuth_times_of, sweep_period
+from datasets.lidar.sweep_times import point_times_for, sweep_period
 from datasets.measurements import GpsFix, ImuSample, Measurement, PointCloud
 from datasets.text_files import check_regular_file
 
@@ -394,7 +394,8 @@ def convert(
         if cloud.points.shape[0] == 0:
             report.skip(topic, "empty cloud (no finite points)", stamp)
             return None
-        points, times = cloud.points, cloud_times(cloud, settings.azimuth_sweep_s, where)
+        points = cloud.points
+        times = point_times_for(points, cloud.point_times, settings.azimuth_sweep_s, where)
         if settings.lidar_to_body is not None:  # after the azimuths: they are the lidar's
             points = points @ settings.lidar_to_body[:3, :3].T + settings.lidar_to_body[:3, 3]
         return PointCloud(t=stamp, points=points, point_times=times)
@@ -506,16 +507,6 @@ def read_stream(
     check_skips(path, topics, settings.max_skipped_fraction, report)
 
 
-def cloud_times(cloud, azimuth_sweep_s: float | None, where: str) -> np.ndarray | None:
-    """The per-point times [s] a decoded cloud is read with: its own, or with
-    ``azimuth_sweep_s`` set (``point_times=azimuth``) those of its lidar-frame azimuths
-    (``datasets.lidar.sweep_times``; ``InputError`` naming ``where`` for a cloud that has
-    its own)."""
-    if azimuth_sweep_s is None:
-        return cloud.point_times
-    return azimuth_times_of(cloud.points, cloud.point_times, azimuth_sweep_s, where)
-
-
 def lidar_sweep_period(reader, path: Path, topic: str, frames: int = 21) -> float:
     """One sweep of ``topic`` [s] for ``point_times=azimuth``: the median interval of the
     header stamps of its first ``frames`` messages (``InputError`` when they give none)."""
@@ -578,7 +569,7 @@ def topic_spans(
             where = f"{path}, topic {topic}, t={stamp:.9f}"
             try:
                 cloud = decode_pointcloud2(message, stamp, where, time_unit)
-                times = cloud_times(cloud, azimuth_sweep_s, where)
+                times = point_times_for(cloud.points, cloud.point_times, azimuth_sweep_s, where)
             except InputError:  # the stream reports a broken cloud where it meets it
                 times = None
             if times is not None and times.size:
@@ -619,7 +610,8 @@ def start_at_first_pose(
             continue
         if not len(cloud.points):
             continue
-        end = pose_time(stamp, cloud_times(cloud, azimuth_sweep_s, where), deskew)
+        times = point_times_for(cloud.points, cloud.point_times, azimuth_sweep_s, where)
+        end = pose_time(stamp, times, deskew)
         if end == time_base.start_s and stamp == time_base.start_s:
             return time_base
         if end > time_base.end_s:

@@ -37,18 +37,22 @@ def azimuth_point_times(points: np.ndarray, sweep_s: float) -> np.ndarray:
     return -np.arctan2(points[:, 1], points[:, 0]) / (2.0 * np.pi) * sweep_s
 
 
-def azimuth_times_of(
-    points: np.ndarray, own_times: np.ndarray | None, sweep_s: float, where: str
-) -> np.ndarray:
-    """``azimuth_point_times`` of a cloud's lidar-frame ``points`` (n, 3) [m]; ``InputError``
-    naming ``where`` (file, or bag and topic and time) when the cloud has ``own_times``: the
-    option is for clouds without them, and does not override a sensor's own."""
+def point_times_for(
+    points: np.ndarray, own_times: np.ndarray | None, azimuth_sweep_s: float | None, where: str
+) -> np.ndarray | None:
+    """The per-point times [s] a cloud is read with: its ``own_times`` (or None), or, with
+    ``azimuth_sweep_s`` set (``point_times=azimuth``), ``azimuth_point_times`` of its
+    lidar-frame ``points`` (n, 3) [m]. ``InputError`` naming ``where`` (file, or bag, topic
+    and time) for a cloud that has times of its own under the option: it is for clouds
+    without them, and does not override a sensor's own."""
+    if azimuth_sweep_s is None:
+        return own_times
     if own_times is not None:
         raise InputError(
             f"{where}: has per-point times of its own; point_times=azimuth is for clouds "
             "without them"
         )
-    return azimuth_point_times(points, sweep_s)
+    return azimuth_point_times(points, azimuth_sweep_s)
 
 
 def sweep_period(stamps: np.ndarray, where: str) -> float:
