@@ -60,10 +60,10 @@ motion-compensated; they are not: a compensated sweep shows a range step where i
 last points meet (0.61 m behind the car at the clip's speed, measured on the clip after a
 synthetic compensation), and the clip's ground rings show none larger than 2.3 cm anywhere
 round (``benchmarks/kitti_clip_sweep_seam.py``). The front end warns when clouds without
-per-point times disagree with KISS-ICP like this (``LidarFrontEnd.heading_warning``). On the corridor bag, where KISS-ICP's per-frame yaw errors against the truth have
-mixed signs (0.05 deg RMS), it reads -0.057 +- 0.27 deg/s (``workbench simulate
-lidar-corridor`` with its defaults; the pairs taken as independent had said +-0.016 on a bag
-like it).
+per-point times disagree with KISS-ICP like this (``LidarFrontEnd.heading_warning``). On the
+corridor bag, where KISS-ICP's per-frame yaw errors against the truth have mixed signs
+(0.05 deg RMS), it reads -0.057 +- 0.27 deg/s (``workbench simulate lidar-corridor`` with its
+defaults; the pairs taken as independent had said +-0.016 on a bag like it).
 
 Horizontal only: the corners' height is the slab's (``corners``), so roll, pitch and height
 are not seen; they take the yaw's and the horizontal translation's variance. The fit runs
