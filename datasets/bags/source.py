@@ -104,6 +104,13 @@ class BagOptions(LidarSourceOptions):
         None, description="NavSatFix topic (default: the only one, if any)"
     )
     imu: bool = Field(True, description="use the IMU topic when there is one")
+    imu_deskew: bool = Field(
+        True,
+        description="with an IMU topic, deskew clouds that carry per-point times by the "
+        "gyro's rotation over the sweep (datasets.lidar.imu_deskew) instead of KISS-ICP's "
+        "constant-velocity prediction; frames the IMU does not cover fall back to the latter "
+        "and are counted in the warnings",
+    )
     gps: bool = Field(True, description="use the NavSatFix topic when there is one")
     gps_sigma_m: float = Field(
         1.0, gt=0, description="GPS std when a fix carries no covariance [m]"
@@ -160,10 +167,10 @@ class LidarSource:
         self.report = ReadReport()
 
     def record_warnings(self, warnings: list[str]) -> None:
-        """Add the last pass's skips and the front end's heading warning to ``warnings``
+        """Add the last pass's skips and the front end's heading and IMU deskew warnings to ``warnings``
         (``datasets.Sequence`` metadata), each once however often the stream is read."""
-        heading = self.front_end.heading_warning()
-        for line in [*self.report.lines(), *([heading] if heading else [])]:
+        front_end = [self.front_end.heading_warning(), self.front_end.imu_deskew_warning()]
+        for line in [*self.report.lines(), *(line for line in front_end if line)]:
             if line not in warnings:
                 warnings.append(line)
 
@@ -329,7 +336,11 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         max_skipped_fraction=settings.max_skipped_fraction,
         time_base=time_base,
     )
-    front_end = LidarFrontEnd(settings.front_end_settings())
+    front_end = LidarFrontEnd(
+        settings.front_end_settings().model_copy(
+            update={"imu_deskew": settings.imu_deskew and imu_topic is not None}
+        )
+    )
     source = LidarSource(front_end)
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
 

@@ -20,15 +20,17 @@ from pydantic import BaseModel, ConfigDict, Field
 from datasets.errors import InputError
 from datasets.lidar.corner_tracking import CornerTracker
 from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, scan_corners
+from datasets.lidar.imu_deskew import GyroBiasFromOdometry, GyroBuffer, SweepMotion
 from datasets.lidar.increment_noise import IncrementNoiseFit, yaw_rate_disagreement
 from datasets.lidar.kiss_icp_odometry import (
     KissIcpOdometry,
     KissIcpSettings,
     deskew_to_end,
     normalized_point_times,
+    pose_time,
 )
 from datasets.lidar.sweep_times import POINT_TIMES_DESCRIPTION
-from datasets.measurements import Odometry, PointCloud
+from datasets.measurements import ImuSample, Odometry, PointCloud
 from datasets.trajectory import Trajectory
 
 HEADING_DISAGREEMENT_SE = 3.0
@@ -52,6 +54,12 @@ class FrontEndSettings(BaseModel):
         description="withhold the corners of this many first frames of clouds with per-point times (no motion estimate to deskew them with yet)",
     )
     kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings")
+    imu_deskew: bool = Field(
+        False,
+        description="deskew clouds with per-point times by the IMU's rotation "
+        "(datasets.lidar.imu_deskew; the stream must carry ImuSample), not KISS-ICP's "
+        "constant-velocity prediction",
+    )
     corner: CornerConfig = Field(
         default_factory=CornerConfig, description="corner extractor settings"
     )
@@ -94,7 +102,11 @@ class LidarSourceOptions(BaseModel):
     def front_end_settings(self) -> FrontEndSettings:
         """The front end's share of these options."""
         return FrontEndSettings(
-            **{name: getattr(self, name) for name in FrontEndSettings.model_fields}
+            **{
+                name: getattr(self, name)
+                for name in FrontEndSettings.model_fields
+                if name in type(self).model_fields
+            }
         )
 
 
@@ -147,6 +159,32 @@ class LidarFrontEnd:
         self.increment_noise = IncrementNoiseFit(
             settings.kiss.rotation_sigma_rad, settings.kiss.translation_sigma_m
         )
+        self._gyro = GyroBuffer()
+        self._gyro_bias = GyroBiasFromOdometry()
+        self.imu_deskewed_frames = 0
+        self.imu_fallback_stamps: list[float] = []  # imu_deskew frames the IMU did not cover
+
+    def add_imu(self, sample: ImuSample) -> None:
+        """Keep a gyro sample for the IMU deskew (a no-op without it; samples already kept,
+        as in a second pass over the stream, are ignored)."""
+        if self.settings.imu_deskew:
+            self._gyro.add(sample.t, sample.gyro)
+
+    def waits_for_imu(self, cloud: PointCloud) -> bool:
+        """Whether ``cloud`` is deskewed with the IMU, so that its frame must wait for the
+        IMU samples up to its sweep end (``with_front_end``)."""
+        return (
+            self.settings.imu_deskew
+            and self._odometry is not None
+            and self.settings.kiss.deskew
+            and normalized_point_times(cloud.point_times).size > 0
+        )
+
+    def output_time(self, cloud: PointCloud) -> float:
+        """Time [s] of the pose, odometry and corners the front end gives ``cloud``."""
+        if self._odometry is None:
+            return cloud.t
+        return pose_time(cloud.t, cloud.point_times, self.settings.kiss.deskew)
 
     def frame(self, index: int, cloud: PointCloud) -> FrontEndFrame:
         """The result for the ``index``-th cloud (computed once, then cached)."""
@@ -170,13 +208,16 @@ class LidarFrontEnd:
             if self.settings.corners
             else None
         )
+        motion = self._imu_motion(cloud) if self.waits_for_imu(cloud) else None
         selected = time.perf_counter()
         pose, odometry, t = None, None, cloud.t
         if self._odometry is not None:
-            registered = self._odometry.register(cloud)
+            registered = self._odometry.register(self._imu_deskewed(cloud, motion))
             pose, odometry, t = registered.pose, registered.odometry, registered.t
+            if odometry is not None and self.settings.imu_deskew:
+                self._update_gyro_bias(odometry)
         icp_done = time.perf_counter()
-        corners = self._corners(cloud, odometry, *scan) if scan is not None else None
+        corners = self._corners(cloud, odometry, motion, *scan) if scan is not None else None
         if (
             corners is not None
             and cloud.point_times is not None
@@ -215,23 +256,69 @@ class LidarFrontEnd:
         self.frames.append(result)
         return result
 
+    def _imu_motion(self, cloud: PointCloud) -> SweepMotion | None:
+        """The body's rotation over the sweep of ``cloud`` from the gyro, or None when the
+        IMU samples do not cover it (counted in ``imu_fallback_stamps`` but for the first
+        frame: a bag's time base starts at the first sweep's end, ``start_at_first_pose``,
+        so its IMU samples before it are trimmed, and KISS-ICP, with no motion yet, does not
+        deskew that sweep either)."""
+        start = cloud.t + float(np.min(cloud.point_times))
+        end = cloud.t + float(np.max(cloud.point_times))
+        previous = self.frames[-1].t if self.frames else start
+        self._gyro.forget_before(min(start, previous))
+        if not self._gyro.covers(start, end):
+            if self.frames:
+                self.imu_fallback_stamps.append(cloud.t)
+            return None
+        self.imu_deskewed_frames += 1
+        return self._gyro.motion(start, end, self._gyro_bias.bias)
+
+    def _imu_deskewed(self, cloud: PointCloud, motion: SweepMotion | None) -> PointCloud:
+        """``cloud`` moved to its sweep end by ``motion`` and the previous frame's body
+        velocity, as a cloud without times stamped there (KISS-ICP then does not deskew
+        it); ``cloud`` itself without a motion."""
+        if motion is None:
+            return cloud
+        points = motion.to_end(
+            cloud.points, cloud.t + cloud.point_times, self._odometry.last_velocity()
+        )
+        return PointCloud(t=float(motion.times[-1]), points=points)
+
+    def _update_gyro_bias(self, odometry: Odometry) -> None:
+        """Feed the gyro bias estimate with this frame's gyro rotation against KISS-ICP's."""
+        start = odometry.t - odometry.dt
+        if self._gyro.covers(start, odometry.t):
+            rotation = self._gyro.rotation(start, odometry.t, np.zeros(3))
+            self._gyro_bias.update(rotation, odometry.relative_pose[:3], odometry.dt)
+
     def _corners(
-        self, cloud: PointCloud, odometry: Odometry | None, chosen: np.ndarray, bins: np.ndarray
+        self,
+        cloud: PointCloud,
+        odometry: Odometry | None,
+        motion: SweepMotion | None,
+        chosen: np.ndarray,
+        bins: np.ndarray,
     ) -> Corners:
         """Corners of the azimuth scan ``chosen`` (point indices) / ``bins``
         (``azimuth_scan_indices``), deskewed to the frame's pose time with the frame's own
         estimated motion (better than KISS-ICP's deskew by the previous frame's motion, which
-        lags when the vehicle turns; without odometry or times, the raw slab points)."""
+        lags when the vehicle turns): its rotation from the IMU when ``motion`` is given,
+        its velocity from the frame's KISS-ICP increment. Without odometry or times, the raw
+        slab points."""
         config = self.settings.corner
         # Only the azimuth scan (about one point per bin) is deskewed, keeping the order and
         # bins the sensor measured them in (``scan_corners``).
         points = cloud.points[chosen]
         times = normalized_point_times(cloud.point_times)
-        if odometry is not None and times.size and self.settings.kiss.deskew:
+        if motion is not None and odometry is not None:
+            points = motion.to_end(
+                points, cloud.t + cloud.point_times[chosen], self._odometry.last_velocity()
+            )
+        elif odometry is not None and times.size and self.settings.kiss.deskew:
             points = deskew_to_end(points, times[chosen], self._odometry.last_delta())
         return scan_corners(np.ascontiguousarray(points[:, :2]), bins, config)
 
-    def resolved(self) -> dict[str, float | str]:
+    def resolved(self) -> dict[str, object]:
         """What KISS-ICP runs with, for the run's metadata: max range and voxel [m], where
         the range came from, and the covariance of its increments at the last frame (empty
         before the first scan or without odometry)."""
@@ -243,7 +330,21 @@ class LidarFrontEnd:
             "max_range_m": float(settings.max_range_m),
             "voxel_size_m": float(voxel),
             "max_range_source": self._odometry.range_source,
+            **self._deskew_summary(),
             **self.increment_noise.current.summary(),
+        }
+
+    def _deskew_summary(self) -> dict[str, object]:
+        """How the clouds were deskewed, for ``resolved``."""
+        if self.untimed_frames == len(self.frames):
+            return {"deskew": "none (no per-point times: taken as motion-compensated)"}
+        if not self.settings.imu_deskew:
+            return {"deskew": "kiss-icp" if self.settings.kiss.deskew else "off"}
+        return {
+            "deskew": "imu",
+            "imu_deskewed_frames": self.imu_deskewed_frames,
+            "imu_deskew_fallback_frames": len(self.imu_fallback_stamps),
+            "imu_deskew_gyro_bias_rad_s": [float(b) for b in self._gyro_bias.bias],
         }
 
     def corner_yaw_rate(self, frames: int | None = None) -> tuple[float, float] | None:
@@ -305,6 +406,18 @@ class LidarFrontEnd:
             "KITTI raw's, rerun with --data point_times=azimuth"
         )
 
+    def imu_deskew_warning(self) -> str | None:
+        """A warning naming the frames the IMU deskew had to leave to KISS-ICP's
+        constant-velocity deskew (IMU samples missing over their sweep), None otherwise."""
+        stamps = self.imu_fallback_stamps
+        if not stamps:
+            return None
+        return (
+            f"IMU deskew: {len(stamps)} of {len(stamps) + self.imu_deskewed_frames} clouds "
+            f"had no IMU samples over their sweep (first at t={stamps[0]:.3f} s) and were "
+            "deskewed by KISS-ICP's constant-velocity prediction instead"
+        )
+
     @property
     def kiss_settings(self) -> KissIcpSettings | None:
         """The KISS-ICP settings in use (the max range resolved from the first scan once
@@ -337,10 +450,16 @@ def with_front_end(
     Clouds stamped before ``emit_from_s`` (the sequence's start, when its first sweep began
     before it) go through the front end but are not emitted themselves.
 
-    A frame's outputs are stamped at or after its cloud's stamp, and every later input is
-    stamped at or after that too, so anything queued up to the current input's stamp can be
-    released: the output stays time-ordered without a look-ahead window. Empty corner scans
-    are not emitted. Stops before the ``max_frames + 1``-th cloud when ``max_frames`` is set.
+    A frame's outputs are stamped at or after its cloud's stamp (``output_time``), and every
+    later input is stamped at or after that too, so anything queued up to the current
+    input's stamp can be released: the output stays time-ordered without a look-ahead
+    window. A cloud the IMU deskews (``waits_for_imu``) is held until an IMU sample at or
+    after its sweep end has arrived (or the next cloud, or the stream's end: the front end
+    then falls back to KISS-ICP's deskew and counts it), and meanwhile only what is stamped
+    before its outputs is released. The holding depends on the stream alone, not on the
+    front end's cache, so every pass over a sequence gives the same order. Empty corner
+    scans are not emitted. Stops before the ``max_frames + 1``-th cloud when ``max_frames``
+    is set.
     """
     import heapq
     import itertools
@@ -348,21 +467,43 @@ def with_front_end(
     queue: list = []
     order = itertools.count()
     index = 0
+    held: PointCloud | None = None  # a cloud waiting for the IMU to pass its sweep end
+    held_until = np.inf  # its outputs' stamp
+    latest_imu = -np.inf  # stamp of the latest IMU sample of this pass
+
+    def run(cloud: PointCloud) -> None:
+        nonlocal index
+        frame = front_end.frame(index, cloud)
+        index += 1
+        if frame.odometry is not None:
+            heapq.heappush(queue, (frame.t, next(order), frame.odometry))
+        if frame.corners is not None and len(frame.corners.points):
+            heapq.heappush(queue, (frame.t, next(order), frame.corners.scan(frame.t)))
+
     for measurement in measurements:
         if isinstance(measurement, PointCloud):
-            if max_frames is not None and index >= max_frames:
+            if max_frames is not None and index + (held is not None) >= max_frames:
                 break
-            frame = front_end.frame(index, measurement)
-            index += 1
+            if held is not None:
+                run(held)
+                held, held_until = None, np.inf
             if emit_clouds and (emit_from_s is None or measurement.t >= emit_from_s):
                 heapq.heappush(queue, (measurement.t, next(order), measurement))
-            if frame.odometry is not None:
-                heapq.heappush(queue, (frame.t, next(order), frame.odometry))
-            if frame.corners is not None and len(frame.corners.points):
-                heapq.heappush(queue, (frame.t, next(order), frame.corners.scan(frame.t)))
+            if front_end.waits_for_imu(measurement):
+                held, held_until = measurement, front_end.output_time(measurement)
+            else:
+                run(measurement)
         else:
             heapq.heappush(queue, (measurement.t, next(order), measurement))
-        while queue and queue[0][0] <= measurement.t:
+            if isinstance(measurement, ImuSample):
+                front_end.add_imu(measurement)
+                latest_imu = max(latest_imu, measurement.t)
+        if held is not None and latest_imu >= held_until:
+            run(held)
+            held, held_until = None, np.inf
+        while queue and queue[0][0] <= measurement.t and queue[0][0] < held_until:
             yield heapq.heappop(queue)[2]
+    if held is not None:
+        run(held)
     while queue:
         yield heapq.heappop(queue)[2]

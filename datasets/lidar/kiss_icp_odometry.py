@@ -213,6 +213,13 @@ class KissIcpOdometry:
             return np.eye(4)
         return np.linalg.inv(self._poses[-2]) @ self._poses[-1]
 
+    def last_velocity(self) -> np.ndarray:
+        """(3,) body-frame linear velocity [m/s] of the last frame: the translation part of
+        the twist ``log(last_delta)`` over its duration (zero before the second frame)."""
+        if len(self._poses) < 2 or not self._times[-1] > self._times[-2]:
+            return np.zeros(3)
+        return se3_log(self.last_delta())[:3] / (self._times[-1] - self._times[-2])
+
     def trajectory(self) -> Trajectory:
         """Poses so far (world = first body frame)."""
         if not self._poses:
