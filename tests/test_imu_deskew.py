@@ -9,7 +9,7 @@ from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, with_front_end
-from datasets.lidar.imu_deskew import GyroBiasFromOdometry, GyroBuffer, rotate_each
+from datasets.lidar.imu_deskew import GyroBuffer, rotate_each
 from datasets.measurements import ImuSample, LandmarkScan, Odometry, PointCloud
 
 
@@ -38,7 +38,7 @@ def test_constant_twist_matches_the_se3_exponential() -> None:
     imu_times = np.arange(-0.2, 0.3, 0.005)
     buffer = _buffer(imu_times, np.tile(rate, (len(imu_times), 1)))
     start, end = 0.0, 0.1
-    motion = buffer.motion(start, end, np.zeros(3))
+    motion = buffer.motion(start, end)
     point_times = rng.uniform(start, end, 200)
     points = rng.uniform(-20.0, 20.0, (200, 3))
     moved = motion.to_end(points, point_times, velocity)
@@ -56,19 +56,11 @@ def test_a_changing_yaw_rate_is_integrated_not_held() -> None:
     imu_times = np.arange(-0.05, 0.2, 0.005)
     yaw_rate = np.clip(imu_times / 0.1, 0.0, 1.0)
     rates = np.column_stack([np.zeros_like(yaw_rate), np.zeros_like(yaw_rate), yaw_rate])
-    motion = _buffer(imu_times, rates).motion(0.0, 0.1, np.zeros(3))
+    motion = _buffer(imu_times, rates).motion(0.0, 0.1)
     # angle from s to the end: integral of t / 0.1 over [s, 0.1]
     expected = -(0.1**2 - motion.times**2) / (2 * 0.1)
     np.testing.assert_allclose(motion.rotation_vectors[:, 2], expected, atol=1e-9)
     np.testing.assert_allclose(motion.rotation_vectors[:, :2], 0.0, atol=1e-12)
-
-
-def test_bias_is_removed_before_integrating() -> None:
-    imu_times = np.arange(0.0, 0.2, 0.005)
-    bias = np.array([0.01, -0.02, 0.03])
-    rates = np.tile(np.array([0.0, 0.0, 0.5]) + bias, (len(imu_times), 1))
-    motion = _buffer(imu_times, rates).motion(0.05, 0.15, bias)
-    np.testing.assert_allclose(motion.rotation_vectors[0], [0.0, 0.0, -0.05], atol=1e-12)
 
 
 def test_rotate_each_is_the_rotation_of_each_row() -> None:
@@ -77,16 +69,6 @@ def test_rotate_each_is_the_rotation_of_each_row() -> None:
     points = rng.normal(0.0, 5.0, (50, 3))
     expected = Rotation.from_rotvec(vectors).apply(points)
     np.testing.assert_allclose(rotate_each(vectors, points), expected, atol=1e-12)
-
-
-def test_gyro_bias_from_odometry_recovers_a_constant_bias() -> None:
-    rng = np.random.default_rng(1)
-    bias = np.array([0.002, -0.001, 0.004])
-    estimate = GyroBiasFromOdometry()
-    for _ in range(80):
-        true_rotation = rng.normal(0.0, 0.05, 3)
-        estimate.update(true_rotation + bias * 0.1, true_rotation, 0.1)
-    np.testing.assert_allclose(estimate.bias, bias, atol=1e-12)
 
 
 def test_coverage_needs_samples_at_both_ends() -> None:
@@ -167,3 +149,40 @@ def test_without_imu_deskew_the_stream_is_as_before() -> None:
     assert front_end.imu_deskewed_frames == 0
     assert front_end.resolved()["deskew"] == "kiss-icp"
     assert sum(isinstance(item, Odometry) for item in items) == 7
+
+
+def _kiss_yaw_errors(bag, imu_deskew: bool) -> tuple[np.ndarray, dict]:
+    """KISS-ICP's per-frame yaw error against the bag's truth [deg], and the sequence's
+    metadata."""
+    from datasets.bags.source import BagOptions, bag_sequence
+    from datasets.lidar.corner_truth import interpolate_poses
+    from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
+
+    options = BagOptions(ground_truth_topic="/ground_truth", imu_deskew=imu_deskew)
+    sequence, _ = bag_sequence(str(bag), options)
+    truth = sequence.ground_truth.pose
+    errors = []
+    for item in sequence.measurements():
+        if isinstance(item, Odometry):
+            _, quaternions = interpolate_poses(truth, np.array([item.t - item.dt, item.t]))
+            before, after = (matrix_from_quat_wxyz(q) for q in quaternions)
+            error = (before.T @ after).T @ so3_exp(item.relative_pose[:3])
+            errors.append(np.degrees(so3_log(error)[2]))
+    return np.array(errors), sequence.metadata
+
+
+def test_imu_deskew_beats_constant_velocity_on_the_synthetic_bag(tmp_path) -> None:
+    """The corridor bag turns at up to 31 deg/s: KISS-ICP's yaw error per frame with the
+    IMU's rotation is well below that with its own constant-velocity deskew (seed 0, 8 s:
+    0.018 against 0.044 deg RMS, benchmarks/bench_lidar_imu_deskew.py)."""
+    from datasets.synthetic_lidar import write_lidar_bag
+
+    bag = write_lidar_bag(tmp_path / "bag", 0, "ros2", {"duration_s": "8"})
+    with_imu, metadata = _kiss_yaw_errors(bag, True)
+    constant_velocity, _ = _kiss_yaw_errors(bag, False)
+    assert metadata["kiss_icp"]["deskew"] == "imu"
+    assert metadata["kiss_icp"]["imu_deskew_fallback_frames"] == 0
+    assert not any("IMU deskew" in line for line in metadata["warnings"])
+    rms_imu = float(np.sqrt(np.mean(with_imu**2)))
+    rms_constant = float(np.sqrt(np.mean(constant_velocity**2)))
+    assert rms_imu < 0.6 * rms_constant, (rms_imu, rms_constant)

@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from datasets.errors import InputError
 from datasets.lidar.corner_tracking import CornerTracker
 from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, scan_corners
-from datasets.lidar.imu_deskew import GyroBiasFromOdometry, GyroBuffer, SweepMotion
+from datasets.lidar.imu_deskew import GyroBuffer, SweepMotion
 from datasets.lidar.increment_noise import IncrementNoiseFit, yaw_rate_disagreement
 from datasets.lidar.kiss_icp_odometry import (
     KissIcpOdometry,
@@ -160,7 +160,6 @@ class LidarFrontEnd:
             settings.kiss.rotation_sigma_rad, settings.kiss.translation_sigma_m
         )
         self._gyro = GyroBuffer()
-        self._gyro_bias = GyroBiasFromOdometry()
         self.imu_deskewed_frames = 0
         self.imu_fallback_stamps: list[float] = []  # imu_deskew frames the IMU did not cover
 
@@ -214,8 +213,6 @@ class LidarFrontEnd:
         if self._odometry is not None:
             registered = self._odometry.register(self._imu_deskewed(cloud, motion))
             pose, odometry, t = registered.pose, registered.odometry, registered.t
-            if odometry is not None and self.settings.imu_deskew:
-                self._update_gyro_bias(odometry)
         icp_done = time.perf_counter()
         corners = self._corners(cloud, odometry, motion, *scan) if scan is not None else None
         if (
@@ -271,7 +268,7 @@ class LidarFrontEnd:
                 self.imu_fallback_stamps.append(cloud.t)
             return None
         self.imu_deskewed_frames += 1
-        return self._gyro.motion(start, end, self._gyro_bias.bias)
+        return self._gyro.motion(start, end)
 
     def _imu_deskewed(self, cloud: PointCloud, motion: SweepMotion | None) -> PointCloud:
         """``cloud`` moved to its sweep end by ``motion`` and the previous frame's body
@@ -283,13 +280,6 @@ class LidarFrontEnd:
             cloud.points, cloud.t + cloud.point_times, self._odometry.last_velocity()
         )
         return PointCloud(t=float(motion.times[-1]), points=points)
-
-    def _update_gyro_bias(self, odometry: Odometry) -> None:
-        """Feed the gyro bias estimate with this frame's gyro rotation against KISS-ICP's."""
-        start = odometry.t - odometry.dt
-        if self._gyro.covers(start, odometry.t):
-            rotation = self._gyro.rotation(start, odometry.t, np.zeros(3))
-            self._gyro_bias.update(rotation, odometry.relative_pose[:3], odometry.dt)
 
     def _corners(
         self,
@@ -344,7 +334,6 @@ class LidarFrontEnd:
             "deskew": "imu",
             "imu_deskewed_frames": self.imu_deskewed_frames,
             "imu_deskew_fallback_frames": len(self.imu_fallback_stamps),
-            "imu_deskew_gyro_bias_rad_s": [float(b) for b in self._gyro_bias.bias],
         }
 
     def corner_yaw_rate(self, frames: int | None = None) -> tuple[float, float] | None:
