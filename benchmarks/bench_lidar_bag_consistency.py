@@ -10,7 +10,9 @@ A suite cannot do this yet: a suite's recording is one file whatever ``--runs`` 
 Each seed also prints the front end against the truth (``front_end_against_truth``): KISS-ICP's
 forward error accumulated over the first frames against its stated per-frame sigma, its
 per-frame NEES, and the corners' error against their stated covariance. These are the inputs
-every estimator shares, so they say what the cells can be expected to read.
+every estimator shares, so they say what the cells can be expected to read. Beside the cells,
+each estimator's mean raw ATE and landmark RMSE over the bags: consistency bought with
+accuracy shows there.
 
 Usage: OPENBLAS_NUM_THREADS=1 python benchmarks/bench_lidar_bag_consistency.py [--runs 10]
     [--duration 8] [--estimator NAME ...] [--data KEY=VALUE ...]
@@ -30,9 +32,13 @@ from datasets.lidar.corner_truth import interpolate_poses, with_true_corner_ids
 from datasets.measurements import LandmarkScan, Odometry
 from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
 from datasets.synthetic_lidar import write_lidar_bag
+from workbench.metrics.summary import compute_metrics, smoothed_key
 from workbench.registry import ESTIMATORS
 from workbench.results.consistency import consistency_cells, run_consistency
 from workbench.runner import RunRequest, execute
+
+ACCURACY = ("ate_rmse_raw_m", "landmark_rmse_m")
+"""Accuracy printed beside the cells (means over bags; the batch smoother's are smoothed)."""
 
 # no surveyed corners in a bag: Aghili's anchors from their first sighting (as the paper suite)
 OVERRIDES = {"aghili": (("anchor_source", "first-observation"),)}
@@ -102,6 +108,7 @@ def main() -> None:
     names = tuple(args.estimator) or tuple(entry.name for entry in ESTIMATORS)  # all run on a bag
     runs: dict[str, list] = {name: [] for name in names}
     failures: dict[str, list[str]] = {name: [] for name in names}
+    accuracy = {name: {key: [] for key in ACCURACY} for name in names}
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder:
         for seed in range(args.runs):
@@ -130,6 +137,10 @@ def main() -> None:
                     failures[name].append(f"seed {seed}: {type(error).__name__}: {error}")
                     continue
                 runs[name].append(run_consistency(result.estimate, sequence))
+                metrics = compute_metrics(result.estimate, sequence)
+                for key in ACCURACY:
+                    value = metrics.get(key, metrics.get(smoothed_key(key)))
+                    accuracy[name][key].append(np.nan if value is None else value)
             print(f"seed {seed} done ({time.perf_counter() - started:.0f} s)", flush=True)
     print(f"\n{args.runs} bags of {args.duration:g} s; value [band] verdict per block")
     for name in names:
@@ -140,6 +151,15 @@ def main() -> None:
             for block, cell in cells.items()
         )
         print(f"{name:20s} runs {len(runs[name])}: {text or 'no cells'}")
+        print(
+            f"{'':20s} mean "
+            + ", ".join(
+                f"{key} {np.nanmean(values):.3f}" if np.isfinite(values).any() else f"{key} n/a"
+                for key, values in (
+                    (k, np.array(v, dtype=float)) for k, v in accuracy[name].items()
+                )
+            )
+        )
         for line in failures[name][:3]:
             print(f"{'':20s} failed {line}")
 

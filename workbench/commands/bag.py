@@ -274,6 +274,16 @@ def bag_command(
             f"({resolved['max_range_source']}), voxel {resolved['voxel_size_m']:g} m",
             err=True,
         )
+        front["deskew"] = resolved["deskew"]
+        deskew = resolved["deskew"]
+        if deskew == "imu":
+            front["imu_deskewed_frames"] = resolved["imu_deskewed_frames"]
+            front["imu_deskew_fallback_frames"] = resolved["imu_deskew_fallback_frames"]
+            deskew = (
+                f"the IMU's rotation ({resolved['imu_deskewed_frames']} frames, "
+                f"{resolved['imu_deskew_fallback_frames']} fell back to KISS-ICP's)"
+            )
+        typer.echo(f"front end: deskew: {deskew}", err=True)
     if source.front_end.settings.odometry:
         noise = source.front_end.increment_noise.current
         fitted = (
