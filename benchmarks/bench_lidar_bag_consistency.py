@@ -139,7 +139,8 @@ def main() -> None:
                 runs[name].append(run_consistency(result.estimate, sequence))
                 metrics = compute_metrics(result.estimate, sequence)
                 for key in ACCURACY:
-                    value = metrics.get(key, metrics.get(smoothed_key(key)))
+                    value = metrics.get(key)
+                    value = metrics.get(smoothed_key(key)) if value is None else value
                     accuracy[name][key].append(np.nan if value is None else value)
             print(f"seed {seed} done ({time.perf_counter() - started:.0f} s)", flush=True)
     print(f"\n{args.runs} bags of {args.duration:g} s; value [band] verdict per block")

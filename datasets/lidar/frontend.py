@@ -2,7 +2,9 @@
 
 With odometry on, corners are extracted from KISS-ICP's deskewed frame, so a corner scan and
 the odometry of a frame share one time (the latest point's) and one body frame. With
-odometry off, corners come from the raw cloud at its stamp.
+odometry off, corners come from the raw cloud at its stamp. Clouds with per-point times are
+deskewed by KISS-ICP's constant-velocity prediction, or, with ``imu_deskew`` (a bag with an
+IMU topic), by the gyro's rotation over the sweep (``datasets.lidar.imu_deskew``).
 
 Results are cached by frame index: KISS-ICP is sequential, so the cache is always a prefix
 of the frames and a second pass over a sequence (another estimator) costs nothing.

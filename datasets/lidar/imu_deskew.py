@@ -23,9 +23,11 @@ synthetic corridor bag with 0.05 rad/s added to the yaw gyro, the per-frame yaw 
 0.021 deg RMS without correction against 0.027 with a running estimate from KISS-ICP's
 increments (whose frame-to-frame noise then distorted each sweep differently).
 
-Measured on the synthetic corridor bag (``benchmarks/bench_lidar_imu_deskew.py``): with the
-*true* motion as the deskew (an upper bound) KISS-ICP's per-frame yaw error falls from
-0.044 to 0.015 deg RMS against its own constant-velocity deskew.
+Measured on the synthetic corridor bag, seeds 0-2 (``benchmarks/bench_lidar_imu_deskew.py``):
+KISS-ICP's per-frame yaw error is 0.0429 deg RMS (max 0.261) with its own constant-velocity
+deskew, 0.0167 (max 0.063) with this one, and 0.0165 (max 0.055) with the *true* motion, an
+upper bound for any deskew. The gain is in the turns: in the straight stretches all three
+read about 0.01 deg, KISS-ICP's registration noise.
 """
 
 from __future__ import annotations
