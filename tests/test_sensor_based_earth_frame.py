@@ -116,3 +116,17 @@ def test_the_landmark_sensor_field_of_view_is_stated_and_used() -> None:
     assert stated.manager.policy.field_of_view_deg == 180.0
     chosen = SensorBasedSlam(SensorBasedConfig(field_of_view_deg=90), sequence)
     assert chosen.manager.policy.field_of_view_deg == 90.0
+
+
+def test_two_earth_map_landmarks_do_not_anchor_and_three_do() -> None:
+    """Two landmarks fix a planar pose with nothing left to check it against (on the real
+    KITTI clip a pair 3.8 m apart turned the heading by 0.55 deg): an anchor needs three."""
+    known = np.eye(2)[None] * 0.05**2
+    for count, anchors in ((2, False), (3, True)):
+        world = WORLD[:count]
+        tracker = EarthFrameTracker(2, np.eye(2), np.zeros(2))
+        covariances = np.repeat(known, count, axis=0)
+        for _ in range(3):
+            tracker.step(np.arange(count), world, covariances, np.eye(2), np.zeros(2))
+        assert len(tracker.earth_map) == count
+        assert (tracker.anchored_steps > 0) is anchors
