@@ -55,8 +55,14 @@ def test_corner_precision_recall_and_ate(runs, name):
     (trimmed,) = metrics["skipped"]
     assert trimmed.startswith("trimmed 20 x /imu") and "end of the first sweep" in trimmed
     assert metrics["nonfinite_points_dropped"] > 0
-    # the covariances (with the model floor) cover the errors of the correct detections
-    assert metrics["corner_error_rms_m"] < 0.04 and 0.3 < metrics["corner_nees_mean"] < 3.0
+    # the covariances (with the model floor) cover the errors of the correct detections;
+    # the warm-up's inflated corners (datasets.lidar.motion_settling) pull the mean NEES
+    # down (0.27 on this bag, 0.31 without the warm-up)
+    assert metrics["corner_error_rms_m"] < 0.04 and 0.2 < metrics["corner_nees_mean"] < 3.0
+    # KISS-ICP settles by the corners within the bag, after inflated increments
+    assert 3 <= metrics["kiss_icp_settled_frame"] < 30
+    assert metrics["kiss_icp_warmup_inflated_increments"] >= 1
+    assert metrics["kiss_icp_warmup_gave_up_frame"] is None
     # the one table writer: a row per estimator, KISS-ICP's own figures in a note
     table = (runs[name] / "table.md").read_text()
     assert table.startswith("| dataset | estimator | runs | ATE [m]")

@@ -167,9 +167,14 @@ class LidarSource:
         self.report = ReadReport()
 
     def record_warnings(self, warnings: list[str]) -> None:
-        """Add the last pass's skips and the front end's heading and IMU deskew warnings to ``warnings``
-        (``datasets.Sequence`` metadata), each once however often the stream is read."""
-        front_end = [self.front_end.heading_warning(), self.front_end.imu_deskew_warning()]
+        """Add the last pass's skips and the front end's heading, warm-up and IMU deskew
+        warnings to ``warnings`` (``datasets.Sequence`` metadata), each once however often
+        the stream is read."""
+        front_end = [
+            self.front_end.heading_warning(),
+            self.front_end.settling_warning(),
+            self.front_end.imu_deskew_warning(),
+        ]
         for line in [*self.report.lines(), *(line for line in front_end if line)]:
             if line not in warnings:
                 warnings.append(line)

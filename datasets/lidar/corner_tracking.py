@@ -95,6 +95,10 @@ class CornerTracker:
         self.gate = float(chi2.ppf(confirm_probability, 2))
         self.tracks: list[_Track] = []
         self.stats = ReobservationStats()
+        # the last frame's confirmed corners against their previous-frame sightings,
+        # horizontally, world frame: differences (k, 2) [m] and their covariances (k, 2, 2)
+        self.step_residuals = np.zeros((0, 2))
+        self.step_covariances = np.zeros((0, 2, 2))
 
     def confirm(
         self,
@@ -111,6 +115,7 @@ class CornerTracker:
         world_cov = np.einsum("ij,kjl,ml->kim", rotation, covariances, rotation)
         count, tracks = len(points), self.tracks
         confirmed = np.zeros(count, dtype=bool)
+        self.step_residuals, self.step_covariances = np.zeros((0, 2)), np.zeros((0, 2, 2))
         new_tracks = [
             _Track(world[j], world_cov[j], world[j], world_cov[j], 1, frame) for j in range(count)
         ]
@@ -129,6 +134,9 @@ class CornerTracker:
             nearest = np.argmin(distances[:, :m], axis=1)
             confirmed = distances[np.arange(count), nearest] <= self.gate
             matched = np.flatnonzero(confirmed)
+            last = nearest[matched]
+            self.step_residuals = (world[matched] - sightings[last])[:, :2]
+            self.step_covariances = (world_cov[matched] + sighting_covariances[last])[:, :2, :2]
             first = m + nearest[matched]
             self.stats.nis.extend(distances[matched, first].tolist())
             residuals = (world[matched] - sightings[first])[:, :2]

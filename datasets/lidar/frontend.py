@@ -31,6 +31,7 @@ from datasets.lidar.kiss_icp_odometry import (
     normalized_point_times,
     pose_time,
 )
+from datasets.lidar.motion_settling import MotionSettling
 from datasets.lidar.sweep_times import POINT_TIMES_DESCRIPTION
 from datasets.measurements import ImuSample, Odometry, PointCloud
 from datasets.trajectory import Trajectory
@@ -161,6 +162,7 @@ class LidarFrontEnd:
         self.increment_noise = IncrementNoiseFit(
             settings.kiss.rotation_sigma_rad, settings.kiss.translation_sigma_m
         )
+        self.settling = MotionSettling()
         self._gyro = GyroBuffer()
         self.imu_deskewed_frames = 0
         self.imu_fallback_stamps: list[float] = []  # imu_deskew frames the IMU did not cover
@@ -223,12 +225,14 @@ class LidarFrontEnd:
             and len(self.frames) < self.settings.warmup_frames
         ):
             corners = _select(corners, np.zeros(len(corners.points), dtype=bool))
+        steps = (np.zeros((0, 2)), np.zeros((0, 2, 2)))  # this frame's corners vs the last
         if corners is not None and pose is not None and len(corners.points):
             d = corners.points.shape[1]
             seen = len(self.tracker.stats.pairs)
             confirmed = self.tracker.confirm(
                 len(self.frames), pose[:d, :d], pose[:d, 3], corners.points, corners.covariances
             )
+            steps = (self.tracker.step_residuals, self.tracker.step_covariances)
             if self.settings.confirm_corners:
                 corners = _select(corners, confirmed)
             if self.settings.kiss.covariance == "re-observations":
@@ -242,6 +246,18 @@ class LidarFrontEnd:
             # this frame's increment: the larger of the stated covariance and the fit over the
             # re-observations up to this frame
             odometry = replace(odometry, covariance=self.increment_noise.current.covariance())
+        # the warm-up (datasets.lidar.motion_settling): until the corners accept KISS-ICP's
+        # increments, each increment and the frame's corners are inflated by the error the
+        # corners show
+        extra = (
+            self.settling.increment_inflation(len(self.frames), *steps)
+            if odometry is not None
+            else None
+        )
+        if extra is not None:
+            odometry = self._inflated_increment(odometry, extra)
+            if corners is not None and len(corners.points):
+                corners = _inflated_corners(corners, pose, extra)
         result = FrontEndFrame(
             cloud.t,
             t,
@@ -254,6 +270,17 @@ class LidarFrontEnd:
         )
         self.frames.append(result)
         return result
+
+    def _inflated_increment(self, odometry: Odometry, extra: np.ndarray) -> Odometry:
+        """The increment with ``extra`` (2, 2) world-frame [m^2] added to its horizontal
+        translation covariance (``motion_settling``), turned into the frame of the previous
+        pose, in which the increment's translation is expressed."""
+        rotation = self.frames[-1].pose[:3, :3]
+        world = np.zeros((3, 3))
+        world[:2, :2] = extra
+        covariance = np.array(odometry.covariance, dtype=float)
+        covariance[3:6, 3:6] += rotation.T @ world @ rotation
+        return replace(odometry, covariance=covariance)
 
     def _imu_motion(self, cloud: PointCloud) -> SweepMotion | None:
         """The body's rotation over the sweep of ``cloud`` from the gyro, or None when the
@@ -323,6 +350,7 @@ class LidarFrontEnd:
             "voxel_size_m": float(voxel),
             "max_range_source": self._odometry.range_source,
             **self._deskew_summary(),
+            **self.settling.summary(),
             **self.increment_noise.current.summary(),
         }
 
@@ -397,6 +425,19 @@ class LidarFrontEnd:
             "KITTI raw's, rerun with --data point_times=azimuth"
         )
 
+    def settling_warning(self) -> str | None:
+        """A warning when the warm-up ended without KISS-ICP settling by the corners
+        (``motion_settling.LIMIT_FRAMES``), None otherwise."""
+        frame = self.settling.gave_up_frame
+        if frame is None:
+            return None
+        return (
+            f"warm-up: the corners never accepted KISS-ICP's increments three frames in a row "
+            f"up to frame {frame}; its first {self.settling.inflated_frames} increments and "
+            "their corners were inflated by the error the corners showed, and nothing after "
+            "(datasets.lidar.motion_settling)"
+        )
+
     def imu_deskew_warning(self) -> str | None:
         """A warning naming the frames the IMU deskew had to leave to KISS-ICP's
         constant-velocity deskew (IMU samples missing over their sweep), None otherwise."""
@@ -418,6 +459,17 @@ class LidarFrontEnd:
     def trajectory(self) -> Trajectory | None:
         """KISS-ICP poses of the frames so far (world = first body frame), or None."""
         return None if self._odometry is None else self._odometry.trajectory()
+
+
+def _inflated_corners(corners: Corners, pose: np.ndarray, extra: np.ndarray) -> Corners:
+    """Corners with ``extra`` (2, 2) world-frame [m^2] added to their horizontal covariance,
+    turned into the body frame of ``pose`` (4, 4): a frame deskewed with an increment off by
+    ``delta`` moves each point by up to ``delta`` (``motion_settling``)."""
+    d = corners.points.shape[1]
+    world = np.zeros((d, d))
+    world[:2, :2] = extra
+    rotation = pose[:d, :d]
+    return replace(corners, covariances=corners.covariances + rotation.T @ world @ rotation)
 
 
 def _select(corners: Corners, keep: np.ndarray) -> Corners:

@@ -146,6 +146,9 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
         # the covariance of KISS-ICP's increments at the last frame, and the fit behind it
         # (datasets.lidar.increment_noise)
         **front_end.increment_noise.current.summary(),
+        # when KISS-ICP's motion had settled by the corners, and how many increments (and
+        # their corners) were inflated before (datasets.lidar.motion_settling)
+        **front_end.settling.summary(),
         # the constant yaw-rate error of KISS-ICP that the corners imply [deg/s] over the
         # first HEADING_CHECK_FRAMES frames, and its standard error (jackknife over corners):
         # a disagreement, which either side may cause (datasets.lidar.increment_noise)
@@ -298,6 +301,13 @@ def bag_command(
             f"({noise.source}{fitted})",
             err=True,
         )
+        settling = source.front_end.settling
+        if settling.settled_frame is not None:
+            typer.echo(
+                f"front end: KISS-ICP settled by the corners at frame {settling.settled_frame} "
+                f"({settling.inflated_frames} increments and their corners inflated before)",
+                err=True,
+            )
         if front["kiss_icp_corner_yaw_rate_deg_s"] is not None:
             typer.echo(
                 "front end: the corners' re-observations imply KISS-ICP turns "
