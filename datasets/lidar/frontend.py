@@ -211,8 +211,10 @@ class LidarFrontEnd:
             if self.settings.corners
             else None
         )
-        motion = self._imu_motion(cloud) if self.waits_for_imu(cloud) else None
         selected = time.perf_counter()
+        # the gyro's rotation over the sweep, when the IMU deskews it (counted as KISS-ICP's
+        # time, which it replaces)
+        motion = self._imu_motion(cloud) if self.waits_for_imu(cloud) else None
         pose, odometry, t = None, None, cloud.t
         if self._odometry is not None:
             registered = self._odometry.register(self._imu_deskewed(cloud, motion))

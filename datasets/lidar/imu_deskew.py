@@ -26,8 +26,10 @@ increments (whose frame-to-frame noise then distorted each sweep differently).
 Measured on the synthetic corridor bag, seeds 0-2 (``benchmarks/bench_lidar_imu_deskew.py``):
 KISS-ICP's per-frame yaw error is 0.0429 deg RMS (max 0.261) with its own constant-velocity
 deskew, 0.0167 (max 0.063) with this one, and 0.0165 (max 0.055) with the *true* motion, an
-upper bound for any deskew. The gain is in the turns: in the straight stretches all three
-read about 0.01 deg, KISS-ICP's registration noise.
+upper bound for any deskew. The gain is in the sharp turn: on seed 0, per ten frames,
+frames 60-79 read 0.093 / 0.076 deg RMS with KISS-ICP's deskew, 0.020 / 0.016 with the IMU's
+and 0.016 / 0.017 with the truth; before it all three read 0.006-0.032, KISS-ICP's
+registration noise, in no fixed order.
 """
 
 from __future__ import annotations
