@@ -60,3 +60,26 @@ def test_correct_increments_settle_at_the_third_frame_in_most_recordings():
                 break
         at_third += settling.settled_frame == SETTLED_FRAMES
     assert at_third >= 185
+
+
+def test_the_warm_up_gives_up_at_its_limit_and_the_front_end_warns():
+    """Corners that never accept the increments (8 cm off in every frame) inflate until
+    LIMIT_FRAMES, then nothing more is inflated, and the front end says so in a warning
+    (which the bag and scan loaders add to the sequence's warnings)."""
+    from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd
+    from datasets.lidar.motion_settling import LIMIT_FRAMES
+
+    rng = np.random.default_rng(5)
+    front_end = LidarFrontEnd(FrontEndSettings())
+    settling = front_end.settling
+    assert front_end.settling_warning() is None
+    inflations = [
+        settling.increment_inflation(frame, *_frame(rng, (0.08, 0.0)))
+        for frame in range(1, LIMIT_FRAMES + 5)
+    ]
+    assert all(extra is not None for extra in inflations[: LIMIT_FRAMES - 1])
+    assert all(extra is None for extra in inflations[LIMIT_FRAMES - 1 :])
+    assert settling.settled_frame is None and settling.gave_up_frame == LIMIT_FRAMES
+    assert settling.inflated_frames == LIMIT_FRAMES - 1
+    warning = front_end.settling_warning()
+    assert warning is not None and f"up to frame {LIMIT_FRAMES}" in warning
