@@ -30,6 +30,7 @@ from datasets.lidar.kiss_icp_odometry import (
     deskew_to_end,
     normalized_point_times,
     pose_time,
+    time_span,
 )
 from datasets.lidar.motion_settling import MotionSettling
 from datasets.lidar.sweep_times import POINT_TIMES_DESCRIPTION
@@ -180,7 +181,7 @@ class LidarFrontEnd:
             self.settings.imu_deskew
             and self._odometry is not None
             and self.settings.kiss.deskew
-            and normalized_point_times(cloud.point_times).size > 0
+            and time_span(cloud.point_times) is not None
         )
 
     def output_time(self, cloud: PointCloud) -> float:
@@ -277,11 +278,8 @@ class LidarFrontEnd:
         """The increment with ``extra`` (2, 2) world-frame [m^2] added to its horizontal
         translation covariance (``motion_settling``), turned into the frame of the previous
         pose, in which the increment's translation is expressed."""
-        rotation = self.frames[-1].pose[:3, :3]
-        world = np.zeros((3, 3))
-        world[:2, :2] = extra
         covariance = np.array(odometry.covariance, dtype=float)
-        covariance[3:6, 3:6] += rotation.T @ world @ rotation
+        covariance[3:6, 3:6] += _horizontal_in_body(extra, self.frames[-1].pose[:3, :3])
         return replace(odometry, covariance=covariance)
 
     def _imu_motion(self, cloud: PointCloud) -> SweepMotion | None:
@@ -290,8 +288,8 @@ class LidarFrontEnd:
         frame: a bag's time base starts at the first sweep's end, ``start_at_first_pose``,
         so its IMU samples before it are trimmed, and KISS-ICP, with no motion yet, does not
         deskew that sweep either)."""
-        start = cloud.t + float(np.min(cloud.point_times))
-        end = cloud.t + float(np.max(cloud.point_times))
+        earliest, latest = time_span(cloud.point_times)
+        start, end = cloud.t + earliest, cloud.t + latest
         previous = self.frames[-1].t if self.frames else start
         self._gyro.forget_before(min(start, previous))
         if not self._gyro.covers(start, end):
@@ -330,13 +328,14 @@ class LidarFrontEnd:
         # Only the azimuth scan (about one point per bin) is deskewed, keeping the order and
         # bins the sensor measured them in (``scan_corners``).
         points = cloud.points[chosen]
-        times = normalized_point_times(cloud.point_times)
         if motion is not None and odometry is not None:
             points = motion.to_end(
                 points, cloud.t + cloud.point_times[chosen], self._odometry.last_velocity()
             )
-        elif odometry is not None and times.size and self.settings.kiss.deskew:
-            points = deskew_to_end(points, times[chosen], self._odometry.last_delta())
+        elif odometry is not None and self.settings.kiss.deskew:
+            times = normalized_point_times(cloud.point_times)
+            if times.size:
+                points = deskew_to_end(points, times[chosen], self._odometry.last_delta())
         return scan_corners(np.ascontiguousarray(points[:, :2]), bins, config)
 
     def resolved(self) -> dict[str, object]:
@@ -468,10 +467,18 @@ def _inflated_corners(corners: Corners, pose: np.ndarray, extra: np.ndarray) -> 
     turned into the body frame of ``pose`` (4, 4): a frame deskewed with an increment off by
     ``delta`` moves each point by up to ``delta`` (``motion_settling``)."""
     d = corners.points.shape[1]
+    return replace(
+        corners, covariances=corners.covariances + _horizontal_in_body(extra, pose[:d, :d])
+    )
+
+
+def _horizontal_in_body(extra: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """A world-frame horizontal covariance ``extra`` (2, 2) [m^2] as a (d, d) covariance in
+    the body frame of ``rotation`` (d, d), body-to-world."""
+    d = rotation.shape[0]
     world = np.zeros((d, d))
     world[:2, :2] = extra
-    rotation = pose[:d, :d]
-    return replace(corners, covariances=corners.covariances + rotation.T @ world @ rotation)
+    return rotation.T @ world @ rotation
 
 
 def _select(corners: Corners, keep: np.ndarray) -> Corners:

@@ -90,24 +90,30 @@ class KissIcpSettings(BaseModel):
         return config
 
 
+def time_span(point_times: np.ndarray | None) -> tuple[float, float] | None:
+    """(earliest, latest) per-point time [s] of a cloud whose points carry times that
+    differ, else None (no times, or one time for all: nothing to deskew)."""
+    if point_times is None or len(point_times) == 0:
+        return None
+    low, high = float(np.min(point_times)), float(np.max(point_times))
+    return (low, high) if high > low else None
+
+
 def normalized_point_times(point_times: np.ndarray | None) -> np.ndarray:
     """Per-point times scaled to [0, 1] as KISS-ICP's deskew expects; empty (no deskew) when
     absent or when the cloud has a single time."""
-    if point_times is None or len(point_times) == 0:
+    span = time_span(point_times)
+    if span is None:
         return np.zeros(0)
-    low, high = float(np.min(point_times)), float(np.max(point_times))
-    if not high > low:
-        return np.zeros(0)
+    low, high = span
     return (np.asarray(point_times, dtype=np.float64) - low) / (high - low)
 
 
 def pose_time(stamp_s: float, point_times: np.ndarray | None, deskew: bool = True) -> float:
     """Time [s] of the pose KISS-ICP gives a cloud stamped ``stamp_s``: its latest point's
     when the cloud is deskewed (per-point times that differ), else the stamp."""
-    if not deskew or point_times is None or len(point_times) == 0:
-        return float(stamp_s)
-    high = float(np.max(point_times))
-    return float(stamp_s) + high if high > float(np.min(point_times)) else float(stamp_s)
+    span = time_span(point_times) if deskew else None
+    return float(stamp_s) + span[1] if span is not None else float(stamp_s)
 
 
 @dataclass(frozen=True)
