@@ -110,7 +110,8 @@ def test_earth_frame_trajectory_follows_the_true_circle() -> None:
     sequence = planar_sequence(30.0, (speed, 0.0), yaw_rate, LANDMARKS * 2.0, seed=3)
     _, estimate = run(SensorBasedSlam, SensorBasedConfig(association="jcbb"), sequence)
     pose = estimate.causal.pose
-    assert pose is not None and pose.covariances is None
+    assert pose is not None and pose.covariances is not None
+    assert np.all(np.linalg.eigvalsh(pose.covariances[1:]) > 0.0)  # first-order, derived
     t = pose.t
     a = yaw_rate * t
     truth = np.column_stack([np.sin(a), 1.0 - np.cos(a)]) * speed / yaw_rate

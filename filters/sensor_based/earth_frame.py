@@ -49,12 +49,20 @@ is for. On UTIAS with ids (SE(2) ATE of robots 1-5, 0.124 / 0.121 / 0.087 / 0.19
 0.113 m with the three-landmark rule, as without it) fusing read 0.131 / 0.128 / 0.094 /
 0.181 / 0.142 m, and the drift test 0.139 / 0.136 / 0.091 m on robots 1-3.
 
-This is a *derived* estimate: its covariance is not propagated (exported as None).
+The planar pose carries a first-order covariance (``earth_pose_covariance``: composition
+and anchoring, our extension; the paper gives none). 3-D poses do not: their tilt and height
+come from the filter's motion, not from an alignment (exported as None).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
+from scipy.linalg import block_diag
+
+from filters.sensor_based.earth_pose_covariance import EarthErrorCovariance, alignment_gains
 
 
 def weighted_rigid_alignment(
@@ -132,11 +140,26 @@ def _well_spread(points: np.ndarray, minimum_spread_m: float) -> bool:
     return len(points) > needed and singular[needed - 1] > minimum_spread_m
 
 
+@dataclass(frozen=True)
+class EarthEntry:
+    """A landmark of the Earth map, kept as it entered.
+
+    Attributes:
+        position: (d,) Earth-frame position [m]; weight: the alignment weight, 1 / trace of
+            its body-frame covariance at entry [1/m^2].
+    """
+
+    position: np.ndarray
+    weight: float
+
+
 class EarthFrameTracker:
     """Accumulates the Earth-frame pose from consecutive body-frame maps.
 
     Attributes:
         rotation: (d, d) body-to-Earth rotation now; position: (d,) body origin in Earth [m].
+        errors: planar: the joint first-order covariance of the pose's and the Earth map's
+            errors (``earth_pose_covariance.EarthErrorCovariance``); None in 3-D.
         aligned_steps / fallback_steps: how many increments came from the alignment / from
             the filter's motion estimate.
     """
@@ -148,14 +171,22 @@ class EarthFrameTracker:
         position: np.ndarray,
         minimum_spread_m: float = 0.5,
         map_sigma_m: float = 0.2,
+        covariance: np.ndarray | None = None,
     ) -> None:
+        """``covariance``: (3, 3) of the planar start pose (world coordinates ``[dp,
+        dtheta]``); None: zero, the start defines the frame. Ignored in 3-D."""
         self.dimension = dimension
         self.rotation = np.array(rotation, dtype=float)
         self.position = np.array(position, dtype=float)
         self.minimum_spread_m = minimum_spread_m
         self.map_sigma_m = map_sigma_m
+        self.errors = None
+        if dimension == 2:
+            self.errors = EarthErrorCovariance(
+                np.zeros((3, 3)) if covariance is None else covariance
+            )
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
-        self.earth_map: dict[int, tuple[np.ndarray, float]] = {}
+        self.earth_map: dict[int, EarthEntry] = {}
         self.aligned_steps = 0
         self.fallback_steps = 0
         self.anchored_steps = 0
@@ -168,6 +199,8 @@ class EarthFrameTracker:
         fallback_rotation: np.ndarray,
         fallback_translation: np.ndarray,
         confirmed: np.ndarray | None = None,
+        motion_covariance: np.ndarray | None = None,
+        joint_covariance: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> None:
         """Advance to the new snapshot.
 
@@ -178,6 +211,11 @@ class EarthFrameTracker:
                 few landmarks.
             confirmed: (L,) bool, the landmarks that may fix the pose and enter the Earth map
                 (None: all); the others are only remembered for the next increment.
+            motion_covariance: (3, 3) covariance of the increment ``[t, phi]`` (planar; the
+                filter's motion uncertainty since the previous snapshot); None: zero.
+            joint_covariance: the joint covariance (2n, 2n) of landmarks given by index into
+                ``ids`` (planar, for the anchored pose's covariance); None: the marginal
+                blocks ``covariances`` only (their correlation lost).
         """
         keys = [int(i) for i in ids]
         usable = (
@@ -217,20 +255,52 @@ class EarthFrameTracker:
         else:
             self.aligned_steps += 1
         rotation, translation = increment
+        if self.errors is not None:
+            self.errors.compose(
+                self.rotation,
+                translation,
+                np.zeros((3, 3)) if motion_covariance is None else motion_covariance,
+            )
         self.position = self.position + self.rotation @ translation
         self.rotation = self.rotation @ rotation
         anchored = self._anchor(keys, positions, weights_now, planar, usable)
         if anchored is not None:
-            self.rotation, self.position = anchored
+            self.rotation, self.position, common, weights = anchored
             self.anchored_steps += 1
+            if self.errors is not None:
+                self.errors.anchor(
+                    [keys[k] for k in common],
+                    alignment_gains(self.rotation, positions[common], weights),
+                    self.rotation,
+                    joint_covariance(np.asarray(common))
+                    if joint_covariance is not None
+                    else block_diag(*covariances[common]),
+                )
         # Re-orthonormalise against round-off accumulated over thousands of products.
         u, _, vt = np.linalg.svd(self.rotation)
         self.rotation = u @ vt
         self._previous = {int(i): (p.copy(), w) for i, p, w in zip(ids, positions, weights_now)}
         known = 1.0 / (self.dimension * self.map_sigma_m**2)
-        for key, position, weight, ok in zip(keys, positions, weights_now, usable):
+        for key, position, covariance, weight, ok in zip(
+            keys, positions, covariances, weights_now, usable
+        ):
             if ok and key not in self.earth_map and weight >= known:
-                self.earth_map[key] = (self.to_earth(position[None])[0], weight)
+                self._enter(key, position, covariance, float(weight))
+
+    def _enter(self, key: int, position: np.ndarray, covariance: np.ndarray, weight: float) -> None:
+        """Put a landmark (body-frame ``position`` (d,), ``covariance`` (d, d)) in the Earth
+        map at the current pose."""
+        earth_position = self.to_earth(position[None])[0]
+        if self.errors is not None:
+            self.errors.enter(
+                key, earth_position, self.position, self.rotation @ covariance @ self.rotation.T
+            )
+        self.earth_map[key] = EarthEntry(earth_position, weight)
+
+    @property
+    def covariance(self) -> np.ndarray | None:
+        """(3, 3) planar pose covariance, world coordinates ``[dp, dtheta]``; None in 3-D."""
+        return None if self.errors is None else self.errors.pose
 
     def _planar(self, covariances: np.ndarray) -> bool:
         """3-D landmarks whose height is not measured (``PLANAR_VARIANCE_RATIO``)."""
@@ -247,9 +317,10 @@ class EarthFrameTracker:
         weights_now: np.ndarray,
         planar: bool,
         usable: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray] | None:
-        """The body-to-Earth pose aligning the current map's ``usable`` landmarks with the
-        Earth map, or None when they share too few well-spread landmarks (horizontally only
+    ) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray] | None:
+        """The body-to-Earth pose (rotation, position) aligning the current map's ``usable``
+        landmarks with the Earth map, with the landmarks it used (indices into ``keys``) and
+        their weights; None when they share too few well-spread landmarks (horizontally only
         for ``planar`` maps, whose tilt and height stay the tracked pose's)."""
         common = [k for k, key in enumerate(keys) if usable[k] and key in self.earth_map]
         spread_of = (lambda p: p[:, :2]) if planar else (lambda p: p)
@@ -257,19 +328,23 @@ class EarthFrameTracker:
             spread_of(positions[common]), self.minimum_spread_m
         ):
             return None
-        earth = np.stack([self.earth_map[keys[k]][0] for k in common])
+        earth = np.stack([self.earth_map[keys[k]].position for k in common])
         weights = np.array(
-            [1.0 / (1.0 / weights_now[k] + 1.0 / self.earth_map[keys[k]][1]) for k in common]
+            [1.0 / (1.0 / weights_now[k] + 1.0 / self.earth_map[keys[k]].weight) for k in common]
         )
         if planar:
-            return horizontal_alignment(
+            rotation, position = horizontal_alignment(
                 positions[common], earth, weights, self.rotation, self.position[2]
             )
-        return weighted_rigid_alignment(positions[common], earth, weights)
+        else:
+            rotation, position = weighted_rigid_alignment(positions[common], earth, weights)
+        return rotation, position, common, weights
 
     def forget(self, landmark_id: int) -> None:
         """Drop a landmark from the Earth map (merged into another by a loop closure)."""
         self.earth_map.pop(int(landmark_id), None)
+        if self.errors is not None:
+            self.errors.forget(landmark_id)
 
     def to_earth(self, positions: np.ndarray) -> np.ndarray:
         """Body-frame points (L, d) in the Earth frame now: ``rho = R p + r``."""

@@ -35,7 +35,8 @@ rate; the rest of that interval uses the average once the next sample arrives.
 Exported (DESIGN.md): ``velocity`` (body frame) and ``gyro_bias`` after every scan,
 ``landmarks`` snapshots (body frame, the filter's own map ids) every
 ``snapshot_interval_s``; ``pose`` is the Earth-frame
-trajectory *derived* from consecutive body-frame maps (no covariance; ``earth_frame=false``
+trajectory *derived* from consecutive body-frame maps (planar: with the first-order
+covariance of ``earth_pose_covariance``, our extension; 3-D: none; ``earth_frame=false``
 turns it off); extras ``vehicle_t``/``vehicle_state``/``vehicle_covariance`` carry the joint
 [v, b] block for the vehicle NEES. NIS: the stacked innovation of every scan, and one
 value per associated landmark (eq. (11)), dof = its block size.
@@ -73,6 +74,7 @@ from datasets.state import BlockName, Frame, LandmarkMap
 from datasets.stream_clock import StreamClock
 from filters import kalman
 from filters.association import AssociationPolicy, Decision, Reason, ScanAssociation
+from filters.ekf_slam.boundary import pose_covariance_to_interface
 from filters.sensor_based.config import (
     PAPER_BEARING_SIGMA_RAD,
     PAPER_RANGE_SIGMA_M,
@@ -83,6 +85,10 @@ from filters.sensor_based.config import (
 from filters.sensor_based.directions import direction_covariance, match_direction
 from filters.sensor_based.dynamics import ProcessNoise, propagate_in_place, rate_dimension
 from filters.sensor_based.earth_frame import EARTH_MIN_SIGHTINGS, EarthFrameTracker
+from filters.sensor_based.earth_pose_covariance import (
+    accumulate_odometry_covariance,
+    motion_covariance,
+)
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
 from filters.sensor_based.loop_closing import (
     LoopClosurePolicy,
@@ -183,13 +189,19 @@ class SensorBasedSlam:
         self.recorder = EstimateRecorder(d, config.snapshot_interval_s)
         self.policy = AssociationPolicy(config, d, sequence.noise.sighting_correlation)
         start_rotation, start_position = np.eye(d), np.zeros(d)
+        start_covariance = None
         if start is not None:
             start_rotation = (
                 rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
             )
             start_position = np.asarray(start.position, dtype=float)
+            start_covariance = np.diag(
+                [start.position_sigma_m**2] * 2 + [start.rotation_sigma_rad**2]
+            )
         self.earth = (
-            EarthFrameTracker(d, start_rotation, start_position) if config.earth_frame else None
+            EarthFrameTracker(d, start_rotation, start_position, covariance=start_covariance)
+            if config.earth_frame
+            else None
         )
         self.loop_policy = LoopClosurePolicy(
             current_window_s=config.association_window_s,
@@ -203,6 +215,10 @@ class SensorBasedSlam:
         self._last_loop_search = -np.inf
         self._motion_rotation = np.eye(d)  # the filter's own motion since the last scan (fallback)
         self._motion_translation = np.zeros(d)
+        self._motion_velocity_gain = np.zeros((d, d))  # sum_j R_j dt_j over that motion [s]
+        self._motion_duration = 0.0  # [s]
+        self._motion_odometry_covariance: np.ndarray | None = None  # (3, 3), planar odometry
+        self._covariance_odometry_t: float | None = None
         self.t: float | None = None if start is None else float(start.t)
         self.clock = StreamClock(self.name, self.t)
         self.rate: np.ndarray | None = None
@@ -244,12 +260,41 @@ class SensorBasedSlam:
         elif isinstance(measurement, LandmarkScan):
             self._scan(measurement)
         elif isinstance(measurement, Odometry):
+            rotation_before = self._motion_rotation
             if self.rate_from_odometry:
                 self._odometry_rate(measurement)
             if self.use_odometry:
                 self._odometry(measurement)
+            self._accumulate_odometry_covariance(measurement, rotation_before)
 
     # ------------------------------------------------------------------ odometry
+    def _accumulate_odometry_covariance(self, odometry: Odometry, rotation: np.ndarray) -> None:
+        """Planar Earth frame: compose the sample's covariance into the motion since the last
+        scan (``earth_pose_covariance.accumulate_odometry_covariance``; ``rotation``: the
+        motion's rotation at the sample's start)."""
+        previous, self._covariance_odometry_t = self._covariance_odometry_t, float(odometry.t)
+        if self.earth is None or self.dimension != 2:
+            return
+        dt = odometry.dt if odometry.dt is not None else odometry.t - (previous or odometry.t)
+        covariance = np.asarray(odometry.covariance, dtype=float)
+        relative = odometry.relative_pose is not None
+        step = (
+            np.asarray(odometry.relative_pose, dtype=float)[:2]
+            if relative
+            else np.array([float(np.asarray(odometry.velocity)[0]) * (dt or 0.0), 0.0])
+        )
+        if not (dt and dt > 0.0 and np.all(np.isfinite(covariance)) and np.all(np.isfinite(step))):
+            return
+        accumulated = self._motion_odometry_covariance
+        self._motion_odometry_covariance = accumulate_odometry_covariance(
+            np.zeros((3, 3)) if accumulated is None else accumulated,
+            rotation,
+            step,
+            dt,
+            covariance,
+            relative,
+        )
+
     def _odometry_rate(self, odometry: Odometry) -> None:
         """Without a gyro, the rate input over an odometry increment is its rotation over
         its duration (``log(dR) / dt``, held over the increment), and the white noise the
@@ -416,6 +461,8 @@ class SensorBasedSlam:
         (only the Earth-frame fallback uses it)."""
         if self.earth is None:
             return
+        self._motion_velocity_gain = self._motion_velocity_gain + self._motion_rotation * dt
+        self._motion_duration += dt
         self._motion_translation = self._motion_translation + self._motion_rotation @ (
             self.state.velocity * dt
         )
@@ -517,6 +564,7 @@ class SensorBasedSlam:
                 [self.manager.records[int(i)].observations >= EARTH_MIN_SIGHTINGS for i in ids],
                 dtype=bool,
             )
+            planar = d == 2
             self.earth.step(
                 ids,
                 positions,
@@ -524,8 +572,12 @@ class SensorBasedSlam:
                 self._motion_rotation,
                 self._motion_translation,
                 confirmed,
+                motion_covariance=self._motion_covariance() if planar else None,
+                joint_covariance=state.position_covariance if planar else None,
             )
             self._motion_rotation, self._motion_translation = np.eye(d), np.zeros(d)
+            self._motion_velocity_gain, self._motion_duration = np.zeros((d, d)), 0.0
+            self._motion_odometry_covariance = None
             self._record_pose(t)
         if self.recorder.snapshot_due(t):
             self.recorder.landmarks(self.landmark_map(t))
@@ -726,8 +778,26 @@ class SensorBasedSlam:
         self.recorder.extra("vehicle_state", state.x[:nv].copy())
         self.recorder.extra("vehicle_covariance", state.covariance[:nv, :nv].ravel().copy())
 
+    def _motion_covariance(self) -> np.ndarray:
+        """Planar covariance (3, 3) of the motion accumulated since the last scan: the
+        odometry's, where odometry drove it, else the filter's own
+        (``earth_pose_covariance``)."""
+        if self._motion_odometry_covariance is not None:
+            return self._motion_odometry_covariance
+        vehicle = self.state.vehicle_dim
+        return motion_covariance(
+            self._motion_velocity_gain,
+            self._motion_duration,
+            self.state.covariance[:vehicle, :vehicle],
+            self.noise.velocity_m_s,
+            self.noise.gyro_bias_rad_s,
+            self.noise.gyro_noise_density,
+        )
+
     def _record_pose(self, t: float) -> None:
-        """The Earth-frame pose (derived from the map history; no covariance)."""
+        """The Earth-frame pose (derived from the map history); planar poses with their
+        first-order covariance (``earth_pose_covariance``), converted to the interface's
+        right perturbation, 3-D poses without."""
         if self.earth is None:
             return
         rotation = self.earth.rotation
@@ -736,7 +806,7 @@ class SensorBasedSlam:
                 t,
                 self.earth.position.copy(),
                 float(np.arctan2(rotation[1, 0], rotation[0, 0])),
-                None,
+                pose_covariance_to_interface(rotation, self.earth.covariance),
             )
         else:
             self.recorder.pose(t, self.earth.position.copy(), quat_wxyz_from_matrix(rotation), None)
@@ -759,7 +829,13 @@ class SensorBasedSlam:
     def estimate(self) -> Estimate:
         pose_note = (
             f"pose: Earth-frame trajectory DERIVED from consecutive body-frame maps by rigid alignment "
-            f"({self.earth.aligned_steps} aligned, {self.earth.fallback_steps} dead-reckoned increments); no covariance"
+            f"({self.earth.aligned_steps} aligned, {self.earth.fallback_steps} dead-reckoned increments, "
+            f"{self.earth.anchored_steps} anchored); "
+            + (
+                "first-order covariance (earth_pose_covariance)"
+                if self.dimension == 2
+                else "no covariance (3-D)"
+            )
             if self.earth is not None
             else "robocentric only: no world pose"
         )
