@@ -15,7 +15,7 @@ from workbench.runner import run_estimator
 
 
 def test_robot1_earth_pose_nees_is_within_three_times_its_dof(utias_folder: Path) -> None:
-    # 300 s of robot 1 with ids (9 s here). The full runs of robots 1-5 read 3.68 / 2.42 /
+    # 300 s of robot 1 with ids (9 s here). The full runs of robots 1-5 read 3.68 / 2.49 /
     # 4.25 / 2.07 / 5.12 (benchmarks/bench_utias_table.py --estimator sensor-based).
     sequence = load(f"{utias_folder}#robot1", 0, {"duration_s": "300"})
     estimate = run_estimator(SensorBasedSlam, SensorBasedConfig(), sequence)

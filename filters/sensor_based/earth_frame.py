@@ -50,8 +50,8 @@ is for. On UTIAS with ids (SE(2) ATE of robots 1-5, 0.124 / 0.121 / 0.087 / 0.19
 0.181 / 0.142 m, and the drift test 0.139 / 0.136 / 0.091 m on robots 1-3.
 
 The planar pose carries a first-order covariance (``earth_pose_covariance``: composition
-and anchoring, our extension; the paper gives none). 3-D poses do not: their tilt and height
-come from the filter's motion, not from an alignment (exported as None).
+and anchoring, our extension; the paper gives none). The 3-D pose is exported without one
+(``earth_pose_covariance`` says why).
 """
 
 from __future__ import annotations
@@ -62,7 +62,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import block_diag
 
-from filters.sensor_based.earth_pose_covariance import EarthErrorCovariance, alignment_gains
+from filters.sensor_based.earth_pose_covariance import (
+    EarthErrorCovariance,
+    alignment_gains,
+    pose_dimension,
+)
 
 
 def weighted_rigid_alignment(
@@ -159,7 +163,8 @@ class EarthFrameTracker:
     Attributes:
         rotation: (d, d) body-to-Earth rotation now; position: (d,) body origin in Earth [m].
         errors: planar: the joint first-order covariance of the pose's and the Earth map's
-            errors (``earth_pose_covariance.EarthErrorCovariance``); None in 3-D.
+            errors (``earth_pose_covariance.EarthErrorCovariance``); None in 3-D (not
+            exported yet, ``earth_pose_covariance`` says why).
         aligned_steps / fallback_steps: how many increments came from the alignment / from
             the filter's motion estimate.
     """
@@ -173,17 +178,18 @@ class EarthFrameTracker:
         map_sigma_m: float = 0.2,
         covariance: np.ndarray | None = None,
     ) -> None:
-        """``covariance``: (3, 3) of the planar start pose (world coordinates ``[dp,
-        dtheta]``); None: zero, the start defines the frame. Ignored in 3-D."""
+        """``covariance``: (k, k) of the start pose (world coordinates ``[dp, dphi]``, k = 3
+        planar, 6 in 3-D); None: zero, the start defines the frame."""
         self.dimension = dimension
         self.rotation = np.array(rotation, dtype=float)
         self.position = np.array(position, dtype=float)
         self.minimum_spread_m = minimum_spread_m
         self.map_sigma_m = map_sigma_m
-        self.errors = None
-        if dimension == 2:
+        size = pose_dimension(dimension)
+        self.errors: EarthErrorCovariance | None = None
+        if dimension == 2:  # 3-D: see earth_pose_covariance's module docstring
             self.errors = EarthErrorCovariance(
-                np.zeros((3, 3)) if covariance is None else covariance
+                dimension, np.zeros((size, size)) if covariance is None else covariance
             )
         self._previous: dict[int, tuple[np.ndarray, float]] = {}
         self.earth_map: dict[int, EarthEntry] = {}
@@ -211,11 +217,11 @@ class EarthFrameTracker:
                 few landmarks.
             confirmed: (L,) bool, the landmarks that may fix the pose and enter the Earth map
                 (None: all); the others are only remembered for the next increment.
-            motion_covariance: (3, 3) covariance of the increment ``[t, phi]`` (planar; the
-                filter's motion uncertainty since the previous snapshot); None: zero.
-            joint_covariance: the joint covariance (2n, 2n) of landmarks given by index into
-                ``ids`` (planar, for the anchored pose's covariance); None: the marginal
-                blocks ``covariances`` only (their correlation lost).
+            motion_covariance: (k, k) covariance of the increment ``[t, phi]`` (the motion's
+                uncertainty since the previous snapshot); None: zero.
+            joint_covariance: the joint covariance (n d, n d) of landmarks given by index into
+                ``ids`` (for the anchored pose's covariance); None: the marginal blocks
+                ``covariances`` only (their correlation lost).
         """
         keys = [int(i) for i in ids]
         usable = (
@@ -259,7 +265,7 @@ class EarthFrameTracker:
             self.errors.compose(
                 self.rotation,
                 translation,
-                np.zeros((3, 3)) if motion_covariance is None else motion_covariance,
+                np.zeros_like(self.errors.pose) if motion_covariance is None else motion_covariance,
             )
         self.position = self.position + self.rotation @ translation
         self.rotation = self.rotation @ rotation
@@ -281,25 +287,33 @@ class EarthFrameTracker:
         self.rotation = u @ vt
         self._previous = {int(i): (p.copy(), w) for i, p, w in zip(ids, positions, weights_now)}
         known = 1.0 / (self.dimension * self.map_sigma_m**2)
-        for key, position, covariance, weight, ok in zip(
-            keys, positions, covariances, weights_now, usable
-        ):
-            if ok and key not in self.earth_map and weight >= known:
-                self._enter(key, position, covariance, float(weight))
-
-    def _enter(self, key: int, position: np.ndarray, covariance: np.ndarray, weight: float) -> None:
-        """Put a landmark (body-frame ``position`` (d,), ``covariance`` (d, d)) in the Earth
-        map at the current pose."""
-        earth_position = self.to_earth(position[None])[0]
+        entering = [
+            k
+            for k, (key, weight, ok) in enumerate(zip(keys, weights_now, usable))
+            if ok and key not in self.earth_map and weight >= known
+        ]
+        if not entering:
+            return
+        earth_positions = self.to_earth(positions[entering])
         if self.errors is not None:
-            self.errors.enter(
-                key, earth_position, self.position, self.rotation @ covariance @ self.rotation.T
+            joint = (
+                joint_covariance(np.asarray(entering))
+                if joint_covariance is not None
+                else block_diag(*covariances[entering])
             )
-        self.earth_map[key] = EarthEntry(earth_position, weight)
+            count, d = len(entering), self.dimension
+            in_earth_axes = np.einsum(  # every (d, d) block rotated: R C_ab R^T
+                "ij,ajbk,lk->aibl", self.rotation, joint.reshape(count, d, count, d), self.rotation
+            ).reshape(count * d, count * d)
+            self.errors.enter(
+                [keys[k] for k in entering], earth_positions, self.position, in_earth_axes
+            )
+        for k, position in zip(entering, earth_positions):
+            self.earth_map[keys[k]] = EarthEntry(position, float(weights_now[k]))
 
     @property
     def covariance(self) -> np.ndarray | None:
-        """(3, 3) planar pose covariance, world coordinates ``[dp, dtheta]``; None in 3-D."""
+        """(k, k) pose covariance, world coordinates ``[dp, dphi]``; None when not tracked."""
         return None if self.errors is None else self.errors.pose
 
     def _planar(self, covariances: np.ndarray) -> bool:

@@ -35,9 +35,9 @@ rate; the rest of that interval uses the average once the next sample arrives.
 Exported (DESIGN.md): ``velocity`` (body frame) and ``gyro_bias`` after every scan,
 ``landmarks`` snapshots (body frame, the filter's own map ids) every
 ``snapshot_interval_s``; ``pose`` is the Earth-frame
-trajectory *derived* from consecutive body-frame maps (planar: with the first-order
-covariance of ``earth_pose_covariance``, our extension; 3-D: none; ``earth_frame=false``
-turns it off); extras ``vehicle_t``/``vehicle_state``/``vehicle_covariance`` carry the joint
+trajectory *derived* from consecutive body-frame maps, planar with the first-order covariance
+of ``earth_pose_covariance`` (our extension), 3-D without one (``earth_frame=false`` turns
+it off); extras ``vehicle_t``/``vehicle_state``/``vehicle_covariance`` carry the joint
 [v, b] block for the vehicle NEES. NIS: the stacked innovation of every scan, and one
 value per associated landmark (eq. (11)), dof = its block size.
 
@@ -196,7 +196,7 @@ class SensorBasedSlam:
             )
             start_position = np.asarray(start.position, dtype=float)
             start_covariance = np.diag(
-                [start.position_sigma_m**2] * 2 + [start.rotation_sigma_rad**2]
+                [start.position_sigma_m**2] * d + [start.rotation_sigma_rad**2] * r
             )
         self.earth = (
             EarthFrameTracker(d, start_rotation, start_position, covariance=start_covariance)
@@ -217,7 +217,7 @@ class SensorBasedSlam:
         self._motion_translation = np.zeros(d)
         self._motion_velocity_gain = np.zeros((d, d))  # sum_j R_j dt_j over that motion [s]
         self._motion_duration = 0.0  # [s]
-        self._motion_odometry_covariance: np.ndarray | None = None  # (3, 3), planar odometry
+        self._motion_odometry_covariance: np.ndarray | None = None  # (k, k), from odometry
         self._covariance_odometry_t: float | None = None
         self.t: float | None = None if start is None else float(start.t)
         self.clock = StreamClock(self.name, self.t)
@@ -269,20 +269,23 @@ class SensorBasedSlam:
 
     # ------------------------------------------------------------------ odometry
     def _accumulate_odometry_covariance(self, odometry: Odometry, rotation: np.ndarray) -> None:
-        """Planar Earth frame: compose the sample's covariance into the motion since the last
-        scan (``earth_pose_covariance.accumulate_odometry_covariance``; ``rotation``: the
-        motion's rotation at the sample's start)."""
+        """Compose the sample's covariance into the motion since the last scan, for the Earth
+        pose's covariance (``earth_pose_covariance.accumulate_odometry_covariance``). ``rotation``: the
+        motion's rotation when the sample arrived, which is its start, or its end where a
+        gyro sample of the same time came first (UTIAS: 20 ms of turn, first order in a
+        lever already small)."""
         previous, self._covariance_odometry_t = self._covariance_odometry_t, float(odometry.t)
-        if self.earth is None or self.dimension != 2:
+        if self.earth is None or self.earth.errors is None:
             return
         dt = odometry.dt if odometry.dt is not None else odometry.t - (previous or odometry.t)
         covariance = np.asarray(odometry.covariance, dtype=float)
         relative = odometry.relative_pose is not None
-        step = (
-            np.asarray(odometry.relative_pose, dtype=float)[:2]
-            if relative
-            else np.array([float(np.asarray(odometry.velocity)[0]) * (dt or 0.0), 0.0])
-        )
+        if relative:
+            pose = np.asarray(odometry.relative_pose, dtype=float)
+            step = pose[:2] if self.dimension == 2 else pose[3:6]
+        else:
+            velocity = np.asarray(odometry.velocity, dtype=float) * (dt or 0.0)
+            step = np.array([velocity[0], 0.0]) if self.dimension == 2 else velocity[0:3]
         if not (dt and dt > 0.0 and np.all(np.isfinite(covariance)) and np.all(np.isfinite(step))):
             return
         accumulated = self._motion_odometry_covariance
@@ -564,7 +567,6 @@ class SensorBasedSlam:
                 [self.manager.records[int(i)].observations >= EARTH_MIN_SIGHTINGS for i in ids],
                 dtype=bool,
             )
-            planar = d == 2
             self.earth.step(
                 ids,
                 positions,
@@ -572,8 +574,8 @@ class SensorBasedSlam:
                 self._motion_rotation,
                 self._motion_translation,
                 confirmed,
-                motion_covariance=self._motion_covariance() if planar else None,
-                joint_covariance=state.position_covariance if planar else None,
+                motion_covariance=self._motion_covariance() if self.earth.errors else None,
+                joint_covariance=state.position_covariance,
             )
             self._motion_rotation, self._motion_translation = np.eye(d), np.zeros(d)
             self._motion_velocity_gain, self._motion_duration = np.zeros((d, d)), 0.0
@@ -779,7 +781,7 @@ class SensorBasedSlam:
         self.recorder.extra("vehicle_covariance", state.covariance[:nv, :nv].ravel().copy())
 
     def _motion_covariance(self) -> np.ndarray:
-        """Planar covariance (3, 3) of the motion accumulated since the last scan: the
+        """Covariance (k, k) of the motion accumulated since the last scan: the
         odometry's, where odometry drove it, else the filter's own
         (``earth_pose_covariance``)."""
         if self._motion_odometry_covariance is not None:
@@ -795,21 +797,23 @@ class SensorBasedSlam:
         )
 
     def _record_pose(self, t: float) -> None:
-        """The Earth-frame pose (derived from the map history); planar poses with their
-        first-order covariance (``earth_pose_covariance``), converted to the interface's
-        right perturbation, 3-D poses without."""
+        """The Earth-frame pose (derived from the map history) with its first-order
+        covariance (``earth_pose_covariance``) converted to the interface's right
+        perturbation; 3-D without one."""
         if self.earth is None:
             return
         rotation = self.earth.rotation
-        if self.dimension == 2:
-            self.recorder.pose(
-                t,
-                self.earth.position.copy(),
-                float(np.arctan2(rotation[1, 0], rotation[0, 0])),
-                pose_covariance_to_interface(rotation, self.earth.covariance),
-            )
-        else:
-            self.recorder.pose(t, self.earth.position.copy(), quat_wxyz_from_matrix(rotation), None)
+        covariance = self.earth.covariance
+        if covariance is not None:
+            covariance = pose_covariance_to_interface(rotation, covariance)
+        self.recorder.pose(
+            t,
+            self.earth.position.copy(),
+            float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+            if self.dimension == 2
+            else quat_wxyz_from_matrix(rotation),
+            covariance,
+        )
 
     def earth_map(self) -> LandmarkMap | None:
         """The current map in the Earth frame (derived; covariances rotated, pose uncertainty ignored)."""
@@ -833,8 +837,8 @@ class SensorBasedSlam:
             f"{self.earth.anchored_steps} anchored); "
             + (
                 "first-order covariance (earth_pose_covariance)"
-                if self.dimension == 2
-                else "no covariance (3-D)"
+                if self.earth.errors is not None
+                else "no covariance (3-D: earth_pose_covariance says why)"
             )
             if self.earth is not None
             else "robocentric only: no world pose"
