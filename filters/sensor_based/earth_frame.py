@@ -178,8 +178,8 @@ class EarthFrameTracker:
         map_sigma_m: float = 0.2,
         covariance: np.ndarray | None = None,
     ) -> None:
-        """``covariance``: (k, k) of the start pose (world coordinates ``[dp, dphi]``, k = 3
-        planar, 6 in 3-D); None: zero, the start defines the frame."""
+        """``covariance``: (3, 3) of the planar start pose (world coordinates ``[dp,
+        dtheta]``); None: zero, the start defines the frame. Unused in 3-D (``errors``)."""
         self.dimension = dimension
         self.rotation = np.array(rotation, dtype=float)
         self.position = np.array(position, dtype=float)

@@ -270,10 +270,10 @@ class SensorBasedSlam:
     # ------------------------------------------------------------------ odometry
     def _accumulate_odometry_covariance(self, odometry: Odometry, rotation: np.ndarray) -> None:
         """Compose the sample's covariance into the motion since the last scan, for the Earth
-        pose's covariance (``earth_pose_covariance.accumulate_odometry_covariance``). ``rotation``: the
-        motion's rotation when the sample arrived, which is its start, or its end where a
-        gyro sample of the same time came first (UTIAS: 20 ms of turn, first order in a
-        lever already small)."""
+        pose's covariance (``earth_pose_covariance.accumulate_odometry_covariance``).
+        ``rotation``: the motion's rotation when the sample arrived, which is its start, or
+        its end where a gyro sample of the same time came first (UTIAS: 20 ms of turn, first
+        order in a lever already small)."""
         previous, self._covariance_odometry_t = self._covariance_odometry_t, float(odometry.t)
         if self.earth is None or self.earth.errors is None:
             return
@@ -290,7 +290,7 @@ class SensorBasedSlam:
             return
         accumulated = self._motion_odometry_covariance
         self._motion_odometry_covariance = accumulate_odometry_covariance(
-            np.zeros((3, 3)) if accumulated is None else accumulated,
+            np.zeros_like(self.earth.errors.pose) if accumulated is None else accumulated,
             rotation,
             step,
             dt,
@@ -574,7 +574,9 @@ class SensorBasedSlam:
                 self._motion_rotation,
                 self._motion_translation,
                 confirmed,
-                motion_covariance=self._motion_covariance() if self.earth.errors else None,
+                motion_covariance=(
+                    self._motion_covariance() if self.earth.errors is not None else None
+                ),
                 joint_covariance=state.position_covariance,
             )
             self._motion_rotation, self._motion_translation = np.eye(d), np.zeros(d)
