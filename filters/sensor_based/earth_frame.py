@@ -224,6 +224,8 @@ class EarthFrameTracker:
                 ``covariances`` only (their correlation lost).
         """
         keys = [int(i) for i in ids]
+        if joint_covariance is None:  # the marginal blocks: their correlation lost
+            joint_covariance = lambda indices: block_diag(*covariances[indices])  # noqa: E731
         usable = (
             np.ones(len(keys), dtype=bool) if confirmed is None else np.asarray(confirmed, bool)
         )
@@ -278,9 +280,7 @@ class EarthFrameTracker:
                     [keys[k] for k in common],
                     alignment_gains(self.rotation, positions[common], weights),
                     self.rotation,
-                    joint_covariance(np.asarray(common))
-                    if joint_covariance is not None
-                    else block_diag(*covariances[common]),
+                    joint_covariance(np.asarray(common)),
                 )
         # Re-orthonormalise against round-off accumulated over thousands of products.
         u, _, vt = np.linalg.svd(self.rotation)
@@ -296,11 +296,7 @@ class EarthFrameTracker:
             return
         earth_positions = self.to_earth(positions[entering])
         if self.errors is not None:
-            joint = (
-                joint_covariance(np.asarray(entering))
-                if joint_covariance is not None
-                else block_diag(*covariances[entering])
-            )
+            joint = joint_covariance(np.asarray(entering))
             count, d = len(entering), self.dimension
             in_earth_axes = np.einsum(  # every (d, d) block rotated: R C_ab R^T
                 "ij,ajbk,lk->aibl", self.rotation, joint.reshape(count, d, count, d), self.rotation

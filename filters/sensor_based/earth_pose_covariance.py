@@ -71,23 +71,17 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import block_diag
 
-SKEW = np.array([[0.0, -1.0], [1.0, 0.0]])
-"""2-D ``d/dtheta R(theta) = SKEW R(theta)``."""
+from datasets.rotations import skew
+from filters.sensor_based.dynamics import PLANAR_S
 
 
 def rotation_lever(vectors: np.ndarray) -> np.ndarray:
     """``J v`` (n, d, r) for vectors (n, d): the change of a world-frame vector under a small
-    world rotation ``dphi``; 2-D ``SKEW v`` (r = 1), 3-D ``-[v]x`` (r = 3)."""
+    world rotation ``dphi``; 2-D ``PLANAR_S v`` (r = 1), 3-D ``-[v]x`` (r = 3)."""
     vectors = np.asarray(vectors, dtype=float)
     if vectors.shape[1] == 2:
-        return (vectors @ SKEW.T)[:, :, None]
-    x, y, z = vectors.T
-    zero = np.zeros(len(vectors))
-    skew = np.stack(
-        [np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)],
-        axis=1,
-    )
-    return -skew
+        return (vectors @ PLANAR_S.T)[:, :, None]
+    return -np.stack([skew(vector) for vector in vectors])
 
 
 def _rigid_lever(points: np.ndarray, centres: np.ndarray) -> np.ndarray:
@@ -142,6 +136,14 @@ def motion_covariance(
     return 0.5 * (result + result.T)
 
 
+def _composition_transition(size: int, rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """``F = [[I, J (R t)], [0, I]]`` (size, size) of a composition ``p += R t`` (module
+    docstring, composition)."""
+    transition = np.eye(size)
+    transition[: len(rotation), len(rotation) :] = rotation_lever((rotation @ translation)[None])[0]
+    return transition
+
+
 def accumulate_odometry_covariance(
     accumulated: np.ndarray,
     rotation: np.ndarray,
@@ -150,35 +152,25 @@ def accumulate_odometry_covariance(
     covariance: np.ndarray,
     relative_pose: bool,
 ) -> np.ndarray:
-    """The covariance (k, k) of the motion ``[t, phi]`` accumulated since the last scan (in
-    that scan's body frame) after one more odometry sample: the composition above,
-    ``F Q F^T + G Sigma G^T`` with the sample's own translation ``step`` (d,) [m] (its start
-    frame) as the lever of the heading error so far.
+    """The covariance (3, 3) of the planar motion ``[t, phi]`` accumulated since the last scan
+    (in that scan's body frame) after one more odometry sample: the composition above,
+    ``F Q F^T + G Sigma G^T`` with the sample's own translation ``step`` (2,) [m] (its start
+    frame) as the lever of the heading error so far. Planar only, as the pose covariance is
+    exported (module docstring, 3-D).
 
     Args:
-        accumulated: (k, k) before the sample; rotation: (d, d) the motion's rotation at the
+        accumulated: (3, 3) before the sample; rotation: (2, 2) the motion's rotation at the
             sample's start.
-        covariance: the sample's own: a relative pose's (2-D ``[x, y, theta]``, 3-D
-            ``[rotation, translation]``), or a velocity's held for ``dt`` [s] (2-D
-            ``[v_forward, omega]``, 3-D ``[v (3), omega (3)]``).
+        covariance: the sample's own: a relative pose's ``[x, y, theta]`` (3, 3), or a
+            velocity's ``[v_forward, omega]`` (2, 2) held for ``dt`` [s].
     """
-    dimension = len(rotation)
-    transition = np.eye(len(accumulated))
-    transition[:dimension, dimension:] = rotation_lever((rotation @ step)[None])[0]
-    if dimension == 2:
-        if relative_pose:
-            gain = block_diag(rotation, 1.0)
-        else:
-            gain = np.zeros((3, 2))
-            gain[:2, 0] = rotation[:, 0] * dt
-            gain[2, 1] = dt
+    transition = _composition_transition(3, rotation, step)
+    if relative_pose:
+        gain = block_diag(rotation, 1.0)
     else:
-        gain = np.zeros((6, 6))
-        scale = 1.0 if relative_pose else dt
-        translation_columns = slice(3, 6) if relative_pose else slice(0, 3)
-        rotation_columns = slice(0, 3) if relative_pose else slice(3, 6)
-        gain[:3, translation_columns] = rotation * scale
-        gain[3:, rotation_columns] = rotation * scale
+        gain = np.zeros((3, 2))
+        gain[:2, 0] = rotation[:, 0] * dt
+        gain[2, 1] = dt
     return transition @ accumulated @ transition.T + gain @ covariance @ gain.T
 
 
@@ -241,10 +233,9 @@ class EarthErrorCovariance:
             rotation: (d, d) the pose's rotation before; translation: (d,) the increment in
                 that body frame [m]; increment_covariance: (k, k) of ``[t, phi]``.
         """
-        size, dimension = self._pose_size, self.dimension
-        transition = np.eye(size)
-        transition[:dimension, dimension:] = rotation_lever((rotation @ translation)[None])[0]
-        noise_gain = block_diag(rotation, rotation if dimension == 3 else 1.0)
+        size = self._pose_size
+        transition = _composition_transition(size, rotation, translation)
+        noise_gain = block_diag(rotation, rotation if self.dimension == 3 else 1.0)
         self.matrix[:size, :] = transition @ self.matrix[:size, :]
         self.matrix[:, :size] = self.matrix[:, :size] @ transition.T
         self.matrix[:size, :size] += noise_gain @ increment_covariance @ noise_gain.T

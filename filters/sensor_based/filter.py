@@ -116,6 +116,14 @@ ODOMETRY_RATE_BIAS_SIGMA_RAD_S = 1e-4
 state stays so that the model is the paper's) [rad/s]."""
 
 
+def _interval(odometry: Odometry, previous_t: float | None) -> float:
+    """An odometry sample's interval [s]: its own ``dt``, else the time since the previous
+    sample (0 for the first, and, as this has always read, when the previous time is 0.0)."""
+    if odometry.dt is not None:
+        return odometry.dt
+    return odometry.t - (previous_t or odometry.t)
+
+
 class SensorBasedSlam:
     """Guerreiro et al. (2013) GAS sensor-based SLAM filter, 2-D and 3-D."""
 
@@ -269,23 +277,21 @@ class SensorBasedSlam:
 
     # ------------------------------------------------------------------ odometry
     def _accumulate_odometry_covariance(self, odometry: Odometry, rotation: np.ndarray) -> None:
-        """Compose the sample's covariance into the motion since the last scan, for the Earth
-        pose's covariance (``earth_pose_covariance.accumulate_odometry_covariance``).
+        """Compose the sample's covariance into the motion since the last scan, for the planar
+        Earth pose's covariance (``earth_pose_covariance.accumulate_odometry_covariance``).
         ``rotation``: the motion's rotation when the sample arrived, which is its start, or
         its end where a gyro sample of the same time came first (UTIAS: 20 ms of turn, first
         order in a lever already small)."""
         previous, self._covariance_odometry_t = self._covariance_odometry_t, float(odometry.t)
         if self.earth is None or self.earth.errors is None:
             return
-        dt = odometry.dt if odometry.dt is not None else odometry.t - (previous or odometry.t)
+        dt = _interval(odometry, previous)
         covariance = np.asarray(odometry.covariance, dtype=float)
         relative = odometry.relative_pose is not None
         if relative:
-            pose = np.asarray(odometry.relative_pose, dtype=float)
-            step = pose[:2] if self.dimension == 2 else pose[3:6]
+            step = np.asarray(odometry.relative_pose, dtype=float)[:2]
         else:
-            velocity = np.asarray(odometry.velocity, dtype=float) * (dt or 0.0)
-            step = np.array([velocity[0], 0.0]) if self.dimension == 2 else velocity[0:3]
+            step = np.array([float(np.asarray(odometry.velocity)[0]) * (dt or 0.0), 0.0])
         if not (dt and dt > 0.0 and np.all(np.isfinite(covariance)) and np.all(np.isfinite(step))):
             return
         accumulated = self._motion_odometry_covariance
@@ -307,7 +313,7 @@ class SensorBasedSlam:
         previous, self._rate_odometry_t = self._rate_odometry_t, float(odometry.t)
         if previous is None:
             previous = self.t
-        dt = odometry.dt if odometry.dt is not None else odometry.t - (previous or odometry.t)
+        dt = _interval(odometry, previous)
         covariance = np.asarray(odometry.covariance, dtype=float)
         if odometry.relative_pose is not None:
             if not dt or dt <= 0.0:
