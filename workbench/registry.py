@@ -85,6 +85,11 @@ ESTIMATORS: tuple[EstimatorEntry, ...] = (
         "world-centric EKF-SLAM baseline (odometry or gyro + constant velocity; ids or JCBB; Joseph form)",
     ),
     EstimatorEntry(
+        "ekf-slam-mht",
+        "filters.ekf_slam.multi_hypothesis:MultiHypothesisEkfSlam",
+        "ekf-slam keeping the most likely association hypotheses (multiple hypothesis tracking) where scans have no ids",
+    ),
+    EstimatorEntry(
         "smoother-batch",
         "smoothers.modes:SmootherBatch",
         "GTSAM batch Levenberg-Marquardt over IMU-preintegration keyframes + landmarks (2-D: Pose2/Point2), started from an iSAM2 pass: the reference",

@@ -17,6 +17,7 @@ ESTIMATOR_COLOURS = {
     "aghili": "#1f77b4",
     "sensor-based": "#ff7f0e",
     "ekf-slam": "#2ca02c",
+    "ekf-slam-mht": "#17becf",
     "smoother-isam2": "#d62728",
     "smoother-fixed-lag": "#9467bd",
     "smoother-batch": "#8c564b",
@@ -26,12 +27,13 @@ ESTIMATOR_MARKERS = {
     "aghili": "o",
     "sensor-based": "s",
     "ekf-slam": "^",
+    "ekf-slam-mht": "<",
     "smoother-isam2": "v",
     "smoother-fixed-lag": "D",
     "smoother-batch": "x",
 }
-EXTRA_COLOURS = ("#e377c2", "#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39")
-EXTRA_MARKERS = ("P", "*", "h", "<", ">", "p", "d")
+EXTRA_COLOURS = ("#e377c2", "#bcbd22", "#393b79", "#637939", "#8c6d31", "#843c39")
+EXTRA_MARKERS = ("P", "*", "h", ">", "p", "d")
 KIND_LINESTYLES = {"causal": "-", "smoothed": "--", "innovation": "-"}
 REFERENCE_COLOUR = "black"
 

@@ -16,7 +16,8 @@ Imports numpy, scipy and ``datasets`` only: nothing else from ``filters`` (the s
 import it without loading any filter).
 
 Modules: ``compatibility`` (the chi-square gate of one pair), ``jcbb`` (the joint search
-and the nearest-neighbour baseline), ``policy`` (``AssociationPolicy``, ``ScanAssociation``).
+and the nearest-neighbour baseline), ``policy`` (``AssociationPolicy``, ``ScanAssociation``), ``hypotheses`` (the k most
+likely joint interpretations of a scan, for multi-hypothesis estimators).
 """
 
 from filters.association.compatibility import (

@@ -75,7 +75,7 @@ class Reason(enum.StrEnum):
     DUPLICATE_SIGHTING = "compatible with another new sighting of the same scan"
 
 
-Mode = Literal["ids", "jcbb", "nearest"]
+Mode = Literal["ids", "jcbb", "nearest", "multi-hypothesis"]
 
 
 class Predictor(Protocol):
@@ -93,7 +93,8 @@ class ScanAssociation:
     """The decisions for one scan's sightings.
 
     Attributes:
-        mode: how it was decided (``ids``, ``jcbb``, ``nearest``).
+        mode: how it was decided (``ids``, ``jcbb``, ``nearest``, or ``multi-hypothesis``:
+            one of ``hypotheses.ranked_hypotheses``).
         decisions: one ``Decision`` per sighting, length k.
         candidates: the matched candidate's index per sighting, shape (k,), -1 unless matched.
         reasons: why each sighting was not used ("" for matched and new), length k.
@@ -267,6 +268,13 @@ class AssociationPolicy:
         self.dimension = dimension
         self.correlation = correlation
         self._last_sighting: dict[int, float] = {}
+
+    def branch(self) -> AssociationPolicy:
+        """An independent copy (same options; its own record of the latest sightings), for
+        an estimator that keeps several hypotheses of its map."""
+        copied = AssociationPolicy(self.options, self.dimension, self.correlation)
+        copied._last_sighting = dict(self._last_sighting)
+        return copied
 
     # ------------------------------------------------------------------ correlation
     def decorrelated(

@@ -73,3 +73,27 @@ class EkfSlamConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOption
         gt=0,
         description="delete a landmark seen only once when this long has passed (None: keep every landmark)",
     )
+
+
+class MultiHypothesisEkfSlamConfig(EkfSlamConfig):
+    """Options of ``ekf-slam-mht``: those of ``ekf-slam`` plus how many association
+    hypotheses it keeps (``filters.ekf_slam.multi_hypothesis``)."""
+
+    max_hypotheses: int = Field(
+        60,
+        ge=1,
+        description="association hypotheses kept after each scan (the most likely; 1: a "
+        "single-hypothesis filter deciding by likelihood)",
+    )
+    hypothesis_log_window: float = Field(
+        20.0,
+        gt=0,
+        description="a hypothesis whose log likelihood is more than this below the best one's "
+        "is dropped (natural log)",
+    )
+    new_landmark_density: float = Field(
+        1.5e-4,
+        gt=0,
+        description="density of sightings of landmarks not yet mapped in the sighting space "
+        "[1/m^d]: the likelihood of a 'new landmark' interpretation of a sighting",
+    )

@@ -35,6 +35,7 @@ and its covariance becomes too small over time (Bailey et al. 2006, section IV).
 
 from __future__ import annotations
 
+import copy
 from typing import ClassVar
 
 import numpy as np
@@ -148,6 +149,23 @@ class EkfSlam:
         self.last_rate: np.ndarray | None = None
         self._record()
 
+    def branch(self) -> EkfSlam:
+        """An independent copy of the filter's state (mean, covariance, map, association
+        record) sharing the configuration and the recorder, for a multi-hypothesis
+        estimator that continues it under another association (``multi_hypothesis``)."""
+        copied = copy.copy(self)
+        copied.covariance = self.covariance.copy()
+        copied.map_ids = list(self.map_ids)
+        copied.source_ids = list(self.source_ids)
+        copied.sightings = list(self.sightings)
+        copied.created_t = list(self.created_t)
+        copied.predicted_position = self.predicted_position.copy()
+        copied.association_modes = set(self.association_modes)
+        copied.policy = self.policy.branch()
+        copied.clock = copy.copy(self.clock)
+        # landmarks, first_landmarks and the vehicle mean are replaced, never changed in place
+        return copied
+
     # ------------------------------------------------------------------ set-up
     @staticmethod
     def _choose_input(config: EkfSlamConfig, sequence: Sequence) -> Sensor:
@@ -188,26 +206,28 @@ class EkfSlam:
         if dt > self.config.max_gap_s:
             self.gaps += 1
             self.recorder.event(measurement.t, "motion_gap", gap_s=dt, input=self.input.value)
+        if isinstance(measurement, Odometry) and self.dimension == 2:
+            increment, increment_cov = planar_odometry_step(
+                self.config, self.sequence_noise.odometry, measurement, dt
+            )
+            self.advance_planar(increment, increment_cov, float(measurement.t))
+            return
         if isinstance(measurement, Odometry):
             increment, increment_cov = _odometry_increment(
                 measurement, dt, self.dimension, self.sequence_noise.odometry
             )
-            predict = predict_odometry_2d if self.dimension == 2 else predict_odometry_3d
-            new, transition, process = predict(
+            new, transition, process = predict_odometry_3d(
                 self.vehicle,
                 self.layout,
                 increment,
                 increment_cov * self.config.odometry_noise_scale,
             )
             if self.fej_propagation:
-                # Huang et al. (2008), eq. (25): the rotation column at the previous
-                # prediction p_{k|k-1} instead of the updated p_{k|k} (3-D: the same with the
-                # world-frame rotation error, -[p' - p]x)
+                # Huang et al. (2008), eq. (25), 3-D: the world-frame rotation error's column
+                # at the previous prediction, -[p' - p_{k|k-1}]x
                 step = new.position - self.predicted_position
                 transition = transition.copy()
-                transition[self.layout.position, self.layout.rotation] = (
-                    (PLANAR_J @ step)[:, None] if self.dimension == 2 else -skew(step)
-                )
+                transition[self.layout.position, self.layout.rotation] = -skew(step)
                 self.predicted_position = new.position.copy()
         else:
             if isinstance(measurement, ImuSample):
@@ -247,18 +267,31 @@ class EkfSlam:
         self.vehicle = new
         self.motion_t = float(measurement.t)
 
+    def advance_planar(self, increment: np.ndarray, increment_cov: np.ndarray, t: float) -> None:
+        """Compose a planar increment ``(dx, dy, dtheta)`` [m, m, rad] with its covariance
+        (3, 3) (scale and gap uncertainty already in it: ``planar_odometry_step``), reached at
+        ``t`` [s]. One sample's increment or several composed (``compose_planar``) give the
+        same mean and covariance: the transition's rotation column telescopes, with FEJ too
+        (``tests/test_ekf_slam_multi_hypothesis.py``)."""
+        new, transition, process = predict_odometry_2d(
+            self.vehicle, self.layout, increment, increment_cov
+        )
+        if self.fej_propagation:
+            # Huang et al. (2008), eq. (25): the rotation column at the previous prediction
+            # p_{k|k-1} instead of the updated p_{k|k}
+            step = new.position - self.predicted_position
+            transition = transition.copy()
+            transition[self.layout.position, self.layout.rotation] = (PLANAR_J @ step)[:, None]
+            self.predicted_position = new.position.copy()
+        kalman.propagate_vehicle(self.covariance, self.vehicle_size, transition, process)
+        self.vehicle = new
+        self.motion_t = float(t)
+        self.t = max(self.t, float(t))
+
     # ------------------------------------------------------------------ scans
     def _scan(self, scan: LandmarkScan) -> None:
-        if scan.points.ndim != 2 or scan.points.shape[1] != self.dimension:
-            raise InputError(
-                f"landmark scan at t={scan.t:.6f} s has points of shape {scan.points.shape}, expected (k, {self.dimension})"
-            )
-        if not (np.all(np.isfinite(scan.points)) and np.all(np.isfinite(scan.covariances))):
-            raise InputError(f"landmark scan at t={scan.t:.6f} s contains NaN or inf")
-        points = np.asarray(scan.points, float)
-        noise = np.asarray(scan.covariances, float) * self.config.measurement_noise_scale
+        points, noise = self.scan_inputs(scan)
         mode = self.policy.mode(scan.ids, scan.t)
-        self.association_modes.add(mode)
         predictor = _MapPredictor(self)
         if mode == "ids":
             association = self.policy.by_ids(
@@ -271,6 +304,29 @@ class EkfSlam:
                 self.recorder.extra("jcbb_nodes", [scan.t, search.nodes, float(search.truncated)])
                 if search.truncated:
                     self.recorder.event(scan.t, "jcbb_truncated", nodes=search.nodes)
+        self.apply_association(scan, points, noise, association)
+
+    def scan_inputs(self, scan: LandmarkScan) -> tuple[np.ndarray, np.ndarray]:
+        """The scan's points (k, d) [m] and the covariances (k, d, d) the filter uses them
+        with (``measurement_noise_scale`` applied), checked."""
+        if scan.points.ndim != 2 or scan.points.shape[1] != self.dimension:
+            raise InputError(
+                f"landmark scan at t={scan.t:.6f} s has points of shape {scan.points.shape}, expected (k, {self.dimension})"
+            )
+        if not (np.all(np.isfinite(scan.points)) and np.all(np.isfinite(scan.covariances))):
+            raise InputError(f"landmark scan at t={scan.t:.6f} s contains NaN or inf")
+        points = np.asarray(scan.points, float)
+        return points, np.asarray(scan.covariances, float) * self.config.measurement_noise_scale
+
+    def apply_association(
+        self,
+        scan: LandmarkScan,
+        points: np.ndarray,
+        noise: np.ndarray,
+        association: ScanAssociation,
+    ) -> None:
+        """Update with the matched sightings, map the new ones, record every decision."""
+        self.association_modes.add(association.mode)
         matched = association.rows(AssociationDecision.MATCHED)
         landmarks = np.full(len(points), -1, dtype=int)
         landmarks[matched] = np.asarray(self.map_ids, dtype=int)[association.candidates[matched]]
@@ -279,7 +335,7 @@ class EkfSlam:
             self._update(scan.t, points[matched], noise[matched], association, matched)
         created: dict[int, int] = {}
         for j in association.rows(AssociationDecision.NEW):
-            source = int(scan.ids[j]) if mode == "ids" else -1
+            source = int(scan.ids[j]) if association.mode == "ids" else -1
             created[int(j)] = self._add_landmark(scan.t, points[j], noise[j], source)
             self.policy.sighted(self.map_ids[created[int(j)]], scan.t)
         self._record_associations(scan.t, association, created)
@@ -440,7 +496,10 @@ class EkfSlam:
             self.map_ids, self.landmarks, self.covariance[v:, v:], Frame.WORLD, t
         )
 
-    def _record(self) -> None:
+    def _record(self, recorder: EstimateRecorder | None = None) -> None:
+        """Record the vehicle's posterior (pose, velocity, gyro bias) into ``recorder``
+        (default: the filter's own)."""
+        recorder = self.recorder if recorder is None else recorder
         layout, P = self.layout, self.covariance
         rotation_matrix = self.vehicle.rotation_matrix()
         pose_size = layout.rotation.stop  # position then rotation lead the vehicle block
@@ -450,9 +509,9 @@ class EkfSlam:
             if self.dimension == 2
             else quat_wxyz_from_matrix(rotation_matrix)
         )
-        self.recorder.pose(self.t, self.vehicle.position, rotation, pose_cov)
+        recorder.pose(self.t, self.vehicle.position, rotation, pose_cov)
         if layout.velocity is not None:
-            self.recorder.block(
+            recorder.block(
                 BlockName.VELOCITY,
                 self.t,
                 self.vehicle.velocity,
@@ -460,7 +519,7 @@ class EkfSlam:
                 Frame.WORLD,
             )
         if layout.gyro_bias is not None:
-            self.recorder.block(
+            recorder.block(
                 BlockName.GYRO_BIAS,
                 self.t,
                 self.vehicle.gyro_bias,
@@ -512,6 +571,23 @@ class _MapPredictor:
 def _first(*values: float | None) -> float:
     """The first value that is not None."""
     return float(next(value for value in values if value is not None))
+
+
+def planar_odometry_step(
+    config: EkfSlamConfig, model: OdometryNoiseModel | None, odometry: Odometry, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """One planar odometry sample over ``dt`` [s] since the previous motion input: the
+    increment ``(dx, dy, dtheta)`` [m, m, rad] and its covariance (3, 3), the data's (or the
+    noise model's) times ``odometry_noise_scale``, plus, after a gap longer than
+    ``max_gap_s``, the gap's uncertainty: ``(gap_speed_m_s dt)^2`` on each position axis and
+    ``(gap_rate_rad_s dt)^2`` on the heading. Isotropic in position, so added in the
+    increment's frame it is the world-frame widening the other inputs get."""
+    increment, covariance = _odometry_increment(odometry, dt, 2, model)
+    covariance = covariance * config.odometry_noise_scale
+    if dt > config.max_gap_s:
+        widening = [(config.gap_speed_m_s * dt) ** 2] * 2 + [(config.gap_rate_rad_s * dt) ** 2]
+        covariance = covariance + np.diag(widening)
+    return increment, covariance
 
 
 def _odometry_increment(

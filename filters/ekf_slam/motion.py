@@ -83,6 +83,30 @@ def predict_odometry_2d(
     return new, transition, process
 
 
+def compose_planar(
+    first: np.ndarray, first_cov: np.ndarray, second: np.ndarray, second_cov: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The planar increment ``u = a (+) b`` of two consecutive increments (3,) with independent
+    covariances (3, 3): ``u_xy = a_xy + R(a_theta) b_xy``, ``u_theta = a_theta + b_theta``
+    (the heading is not wrapped), ``Sigma_u = J_a Sigma_a J_a^T + J_b Sigma_b J_b^T`` with
+    ``J_a = [[I, J R(a_theta) b_xy], [0, 1]]`` and ``J_b = diag(R(a_theta), 1)`` (the
+    compounding of Smith, Self and Cheeseman 1990). ``predict_odometry_2d`` with ``u`` gives
+    the mean and covariance of the two predictions in turn."""
+    first, second = np.asarray(first, float), np.asarray(second, float)
+    rotation = rot2(float(first[2]))
+    turned = rotation @ second[:2]
+    first_jacobian = np.eye(3)
+    first_jacobian[0:2, 2] = PLANAR_J @ turned
+    second_jacobian = np.eye(3)
+    second_jacobian[0:2, 0:2] = rotation
+    composed = np.array([first[0] + turned[0], first[1] + turned[1], first[2] + second[2]])
+    covariance = (
+        first_jacobian @ np.asarray(first_cov, float) @ first_jacobian.T
+        + second_jacobian @ np.asarray(second_cov, float) @ second_jacobian.T
+    )
+    return composed, covariance
+
+
 def predict_odometry_3d(
     mean: VehicleMean, layout: VehicleLayout, increment: np.ndarray, increment_cov: np.ndarray
 ) -> tuple[VehicleMean, np.ndarray, np.ndarray]:

@@ -1,0 +1,250 @@
+"""EKF-SLAM with multi-hypothesis association (``ekf-slam-mht``).
+
+A single-hypothesis filter decides each scan's association once and for good; on UTIAS
+MRCLAM without ids (a camera that sees one or two of 15 landmarks, 0.7-3 m apart, after
+gaps of a minute) one wrong pairing corrupts the map and the rest of the run follows it
+(``docs/association.md``). This estimator keeps several world-centric EKF-SLAM filters
+(``filter.EkfSlam``), each the posterior under one history of association decisions: multiple
+hypothesis tracking (Reid 1979) applied to a landmark map as in Cox and Leonard (1994), with
+the hypotheses' filters as in their section 3 (one Kalman filter per hypothesis).
+
+At each scan every hypothesis is extended by the scan's most likely interpretations
+(``filters.association.hypotheses.ranked_hypotheses``: each sighting paired with a distinct
+landmark inside its ``new_landmark_probability`` gate, or a new landmark of density
+``new_landmark_density``), scored by the scan's joint likelihood under that hypothesis's
+prediction. A hypothesis's score is the sum of its scans' log likelihoods, so the probability
+of a history of decisions given the data, up to a common constant (Reid 1979, eq. 16). The
+``max_hypotheses`` best survive, and none less likely than the best by more than
+``hypothesis_log_window``. With ids the scan is decided by them (one child, no branching).
+
+What the run records:
+- **causal**: after each step, the posterior of the hypothesis most likely *at that time*
+  (what the estimator would answer then), with that hypothesis's covariance (not a mixture);
+- **associations, innovations, landmark counts and the final map**: those of the hypothesis
+  most likely at the end. Its decisions are the ones the estimator stands by after seeing
+  all the data: association precision and recall score the map it delivers, not what the
+  leading hypothesis said at each scan (an event ``hypothesis_switch`` marks every scan after
+  which the leader is not a continuation of the previous leader, and their count is in the
+  notes).
+
+Cost: with odometry input in 2-D the hypotheses other than the leader compose the odometry
+samples between two scans into one increment (``motion.compose_planar``) and predict once
+per scan, which gives the same mean and covariance as predicting every sample; the leader
+predicts every sample, for the causal record. With other inputs every hypothesis predicts
+every sample.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import BaseModel
+
+from datasets.errors import InputError
+from datasets.estimate import Estimate, EstimateRecorder
+from datasets.measurements import LandmarkScan, Measurement, Odometry, Sensor
+from datasets.sequence import Sequence
+from datasets.stream_clock import StreamClock
+from filters.association.hypotheses import ranked_hypotheses
+from filters.ekf_slam.config import MultiHypothesisEkfSlamConfig
+from filters.ekf_slam.filter import EkfSlam, _MapPredictor, planar_odometry_step
+from filters.ekf_slam.motion import compose_planar
+
+INTERPRETATIONS_PER_SCAN = 6
+"""Interpretations of a scan each hypothesis is extended by (before the global pruning)."""
+
+
+class _BranchLog:
+    """What one hypothesis's filter records, kept as calls to replay into the run's
+    ``EstimateRecorder`` if the hypothesis wins. Poses and map snapshots are not kept (the
+    run records the leader's itself)."""
+
+    KEPT = frozenset({"association", "innovation", "nis", "event", "extra", "landmark_count"})
+
+    def __init__(self, calls: list[tuple[str, tuple, dict]] | None = None) -> None:
+        self.calls = [] if calls is None else calls
+
+    def __getattr__(self, name: str) -> Any:
+        if name in self.KEPT:
+            return lambda *args, **kwargs: self.calls.append((name, args, kwargs))
+        if name == "snapshot_due":
+            return lambda t: False
+        if name in {"pose", "block", "landmarks", "final_snapshot"}:
+            return lambda *args, **kwargs: None
+        raise AttributeError(name)
+
+    def take(self) -> tuple[tuple[str, tuple, dict], ...]:
+        calls, self.calls = tuple(self.calls), []
+        return calls
+
+
+@dataclass
+class _Hypothesis:
+    """One history of association decisions: its filter, its log likelihood, and its
+    recorded calls as a chain ``(earlier chain, calls of one scan)`` shared with its
+    siblings."""
+
+    filter: EkfSlam
+    log_likelihood: float
+    history: tuple | None
+
+
+class MultiHypothesisEkfSlam:
+    """World-centric EKF-SLAM keeping several association hypotheses (module docstring)."""
+
+    Config: ClassVar[type[BaseModel]] = MultiHypothesisEkfSlamConfig
+    sensor_options = EkfSlam.sensor_options
+    dimensions = EkfSlam.dimensions
+
+    def __init__(self, config: MultiHypothesisEkfSlamConfig, sequence: Sequence) -> None:
+        if config.association in ("jcbb", "nearest"):
+            raise InputError(
+                f"ekf-slam-mht decides sightings without ids by its hypotheses; association={config.association} "
+                "is ekf-slam's (use association=auto or ids)"
+            )
+        self.config = config
+        first = EkfSlam(config, sequence)  # records the initial pose into its recorder
+        self.recorder: EstimateRecorder = first.recorder
+        first.recorder = _BranchLog()
+        self.hypotheses = [_Hypothesis(first, 0.0, None)]
+        self.leader = self.hypotheses[0]
+        self.composing = first.input is Sensor.ODOMETRY and first.dimension == 2
+        self.odometry_model = sequence.noise.odometry
+        self.pending: tuple[np.ndarray, np.ndarray] | None = None
+        self.motion_t = first.motion_t
+        self.clock = StreamClock(f"ekf-slam-mht on {sequence.name}", first.t)
+        self.t = first.t
+        self.log_density = math.log(config.new_landmark_density)
+        self.gaps = 0
+        self.switches = 0
+        self.peak = 1
+
+    # ------------------------------------------------------------------ inputs
+    def process(self, measurement: Measurement) -> None:
+        self.clock.advance(measurement.t, type(measurement).__name__)
+        self.t = max(self.t, float(measurement.t))
+        if isinstance(measurement, LandmarkScan):
+            self._catch_up()
+            self._scan(measurement)
+        elif measurement.sensor is self.leader.filter.input:
+            if self.composing:
+                self._odometry(measurement)  # type: ignore[arg-type]
+            else:
+                for hypothesis in self.hypotheses:
+                    hypothesis.filter.process(measurement)
+        else:
+            return
+        self.leader.filter.t = max(self.leader.filter.t, self.t)
+        self.leader.filter._record(self.recorder)
+        if isinstance(measurement, LandmarkScan) and self.recorder.snapshot_due(measurement.t):
+            self.recorder.landmarks(self.leader.filter._map_snapshot(measurement.t))
+
+    def _odometry(self, odometry: Odometry) -> None:
+        """The leader predicts the sample; the others' increment grows by it."""
+        dt = float(odometry.t) - self.motion_t
+        if dt > self.config.max_gap_s:
+            self.gaps += 1
+            self.recorder.event(odometry.t, "motion_gap", gap_s=dt, input=Sensor.ODOMETRY.value)
+        step = planar_odometry_step(self.config, self.odometry_model, odometry, dt)
+        self.leader.filter.advance_planar(*step, float(odometry.t))
+        self.pending = step if self.pending is None else compose_planar(*self.pending, *step)
+        self.motion_t = float(odometry.t)
+
+    def _catch_up(self) -> None:
+        """Every hypothesis but the leader predicts the odometry composed since the last scan."""
+        if self.pending is not None:
+            for hypothesis in self.hypotheses:
+                if hypothesis is not self.leader:
+                    hypothesis.filter.advance_planar(*self.pending, self.motion_t)
+        self.pending = None
+
+    # ------------------------------------------------------------------ scans
+    def _scan(self, scan: LandmarkScan) -> None:
+        children: list[tuple[float, _Hypothesis, Any]] = []
+        for hypothesis in self.hypotheses:
+            ekf = hypothesis.filter
+            ekf.t = max(ekf.t, float(scan.t))
+            points, noise = ekf.scan_inputs(scan)
+            if ekf.policy.mode(scan.ids, scan.t) == "ids":
+                association = ekf.policy.by_ids(
+                    scan.ids, points, noise, np.array(ekf.source_ids, dtype=int), _MapPredictor(ekf)
+                )
+                children.append((hypothesis.log_likelihood, hypothesis, association))
+                continue
+            for interpretation in ranked_hypotheses(
+                points,
+                noise,
+                len(ekf.map_ids),
+                _MapPredictor(ekf),
+                gate_probability=self.config.new_landmark_probability,
+                new_landmark_log_density=self.log_density,
+                count=INTERPRETATIONS_PER_SCAN,
+            ):
+                children.append(
+                    (
+                        hypothesis.log_likelihood + interpretation.log_likelihood,
+                        hypothesis,
+                        interpretation.association(noise),
+                    )
+                )
+        children.sort(key=lambda child: -child[0])
+        best = children[0][0]
+        survivors = [c for c in children if c[0] >= best - self.config.hypothesis_log_window]
+        survivors = survivors[: self.config.max_hypotheses]
+        # copies first: a parent's filter is changed by the child that continues it
+        uses: dict[int, int] = {}
+        for _, parent, _ in survivors:
+            uses[id(parent)] = uses.get(id(parent), 0) + 1
+        filters: dict[int, list[EkfSlam]] = {}
+        for _, parent, _ in survivors:
+            if id(parent) not in filters:
+                count = uses[id(parent)]
+                filters[id(parent)] = [parent.filter.branch() for _ in range(count - 1)] + [
+                    parent.filter
+                ]
+        previous_leader = self.leader
+        kept = []
+        for score, parent, association in survivors:
+            ekf = filters[id(parent)].pop()
+            log = _BranchLog(list(ekf.recorder.calls))
+            ekf.recorder = log
+            points, noise = ekf.scan_inputs(scan)
+            ekf.apply_association(scan, points, noise, association)
+            kept.append(_Hypothesis(ekf, score, (parent.history, log.take())))
+        self.hypotheses = kept
+        self.leader = kept[0]
+        if survivors[0][1] is not previous_leader:
+            self.switches += 1
+            self.recorder.event(scan.t, "hypothesis_switch", hypotheses=len(kept))
+        self.peak = max(self.peak, len(kept))
+        self.recorder.extra("hypotheses", [scan.t, len(kept)])
+
+    # ------------------------------------------------------------------ output
+    def estimate(self) -> Estimate:
+        self._catch_up()
+        winner = max(self.hypotheses, key=lambda hypothesis: hypothesis.log_likelihood)
+        chain = []
+        history = winner.history
+        while history is not None:
+            history, calls = history
+            chain.append(calls)
+        for calls in reversed(chain):
+            for name, args, kwargs in calls:
+                getattr(self.recorder, name)(*args, **kwargs)
+        for name, args, kwargs in winner.filter.recorder.calls:  # after the last scan
+            getattr(self.recorder, name)(*args, **kwargs)
+        ekf = winner.filter
+        final_map = ekf._map_snapshot(self.t)
+        self.recorder.final_snapshot(final_map)
+        single = int(sum(1 for count in ekf.sightings if count == 1))
+        notes = (
+            f"ekf-slam-mht: motion input {ekf.input.value}, association {'+'.join(sorted(ekf.association_modes)) or 'none'}, "
+            f"{len(ekf.map_ids)} landmarks mapped ({single} seen only once), {self.gaps + ekf.gaps} motion gaps > {self.config.max_gap_s} s",
+            f"ekf-slam-mht: up to {self.peak} hypotheses kept (max_hypotheses={self.config.max_hypotheses}), "
+            f"the leader switched to another history after {self.switches} scans; associations, NIS "
+            "and the map are the final most likely hypothesis's, the causal trajectory each time's leader",
+        )
+        return self.recorder.build(landmarks=final_map, notes=notes)
