@@ -187,3 +187,33 @@ def test_simulated_loop_without_ids_is_consistent() -> None:
     assert low <= diagnostics.scan_nis.sum() / dof <= high
     pose = estimate.causal.pose
     assert pose is not None and np.all(np.linalg.eigvalsh(pose.covariances) > 0)
+
+
+def test_missed_detections_are_priced_for_landmarks_in_view() -> None:
+    # landmarks 0 and 1 in view, 2 and 3 out: each pairing adds log P_D, each landmark in
+    # view left unpaired log(1 - P_D), on top of the scores without the term
+    predicted = np.array([[1.0, 0.0], [1.4, 0.1], [3.0, 1.0], [0.0, 2.0]])
+    joint = 0.01 * np.eye(8)
+    measured = np.array([[1.02, 0.01]])
+    measured_cov = np.stack([np.diag([0.01, 0.01])])
+    visible = np.array([True, True, False, False])
+    common = dict(gate_probability=0.9999, new_landmark_log_density=np.log(1e-3), count=4)
+    plain = ranked_hypotheses(
+        measured, measured_cov, 4, _FixedPredictor(predicted, joint), **common
+    )
+    priced = ranked_hypotheses(
+        measured,
+        measured_cov,
+        4,
+        _FixedPredictor(predicted, joint),
+        detection_probability=0.3,
+        in_view=lambda points: visible[: len(points)],
+        **common,
+    )
+    before = {tuple(h.candidates): h.log_likelihood for h in plain}
+    for hypothesis in priced:
+        paired = hypothesis.candidates[hypothesis.candidates >= 0]
+        unseen = np.count_nonzero(visible) - np.count_nonzero(visible[paired])
+        expected = before[tuple(hypothesis.candidates)] + len(paired) * np.log(0.3)
+        expected += unseen * np.log(0.7)
+        assert hypothesis.log_likelihood == pytest.approx(expected, abs=1e-9)

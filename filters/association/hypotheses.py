@@ -24,6 +24,7 @@ among those enumerated.
 from __future__ import annotations
 
 import heapq
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,6 +76,8 @@ def ranked_hypotheses(
     gate_probability: float,
     new_landmark_log_density: float,
     count: int,
+    detection_probability: float | None = None,
+    in_view: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[ScanHypothesis]:
     """The ``count`` most likely hypotheses of a scan, best first (module docstring).
 
@@ -84,6 +87,10 @@ def ranked_hypotheses(
         gate_probability: a pair outside this individual chi-square gate is no candidate.
         new_landmark_log_density: ``log(lambda_new)``, lambda_new in 1/m^d.
         count: how many to return (at least one: all sightings new is always feasible).
+        detection_probability: ``P_D``, with ``in_view`` (predicted sightings (m, d) -> (m,)
+            bool, inside the sensor's view): the missed-detection term, each pairing
+            ``log P_D`` and each landmark in view left unpaired ``log(1 - P_D)`` (Reid 1979,
+            eq. 16). None: no such term.
     """
     measured = np.asarray(measured, dtype=float)
     measured_cov = np.asarray(measured_cov, dtype=float)
@@ -101,6 +108,14 @@ def ranked_hypotheses(
         _, log_det = np.linalg.slogdet(2.0 * np.pi * innovation_cov)
         inside = distances < chi2_gate(d, gate_probability)
         pair_cost[inside] = 0.5 * (distances[inside] + log_det[inside])
+    detection = np.zeros(candidate_count)  # what pairing landmark i adds to log L beyond N
+    missed_total = 0.0  # log L of every landmark in view left unpaired
+    if candidate_count and detection_probability is not None and in_view is not None:
+        visible = np.asarray(in_view(predicted), dtype=bool)
+        missed = np.log1p(-detection_probability)
+        missed_total = missed * np.count_nonzero(visible)
+        detection = np.log(detection_probability) - np.where(visible, missed, 0.0)
+        pair_cost = pair_cost - detection[None, :]
     new_cost = np.full((k, k), np.inf)
     np.fill_diagonal(new_cost, -float(new_landmark_log_density))
     cost = np.hstack([pair_cost, new_cost])
@@ -128,6 +143,7 @@ def ranked_hypotheses(
             measured_cov[paired],
         )
         score += (k - paired.size) * float(new_landmark_log_density)
+        score += missed_total + detection[candidates[paired]].sum()
         hypotheses.append(ScanHypothesis(score, candidates, nis))
     hypotheses.sort(key=lambda hypothesis: -hypothesis.log_likelihood)
     return hypotheses[: max(1, count)]

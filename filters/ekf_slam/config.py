@@ -97,3 +97,11 @@ class MultiHypothesisEkfSlamConfig(EkfSlamConfig):
         description="density of sightings of landmarks not yet mapped in the sighting space "
         "[1/m^d]: the likelihood of a 'new landmark' interpretation of a sighting",
     )
+    detection_probability: float | None = Field(
+        None,
+        gt=0,
+        lt=1,
+        description="probability that a landmark predicted inside the sensor's view (the "
+        "sequence's landmark_field_of_view_deg and landmark_range_m) is sighted in a scan: a "
+        "hypothesis pays log(1 - P_D) for each one it leaves unsighted; None: no such term",
+    )

@@ -118,6 +118,7 @@ class MultiHypothesisEkfSlam:
         self.clock = StreamClock(f"ekf-slam-mht on {sequence.name}", first.t)
         self.t = first.t
         self.log_density = math.log(config.new_landmark_density)
+        self.in_view = _view_test(sequence) if config.detection_probability else None
         self.gaps = 0
         self.switches = 0
         self.peak = 1
@@ -143,14 +144,15 @@ class MultiHypothesisEkfSlam:
             self.recorder.landmarks(self.leader.filter._map_snapshot(measurement.t))
 
     def _odometry(self, odometry: Odometry) -> None:
-        """The leader predicts the sample; the others' increment grows by it."""
+        """The leader predicts the sample; the others' composed increment grows by it."""
         dt = float(odometry.t) - self.motion_t
         if dt > self.config.max_gap_s:
             self.gaps += 1
             self.recorder.event(odometry.t, "motion_gap", gap_s=dt, input=Sensor.ODOMETRY.value)
         step = planar_odometry_step(self.config, self.odometry_model, odometry, dt)
         self.leader.filter.advance_planar(*step, float(odometry.t))
-        self.pending = step if self.pending is None else compose_planar(*self.pending, *step)
+        if len(self.hypotheses) > 1:  # the others' increment
+            self.pending = step if self.pending is None else compose_planar(*self.pending, *step)
         self.motion_t = float(odometry.t)
 
     def _catch_up(self) -> None:
@@ -182,6 +184,8 @@ class MultiHypothesisEkfSlam:
                 gate_probability=self.config.new_landmark_probability,
                 new_landmark_log_density=self.log_density,
                 count=INTERPRETATIONS_PER_SCAN,
+                detection_probability=self.config.detection_probability,
+                in_view=self.in_view,
             ):
                 children.append(
                     (
@@ -201,15 +205,13 @@ class MultiHypothesisEkfSlam:
         filters: dict[int, list[EkfSlam]] = {}
         for _, parent, _ in survivors:
             if id(parent) not in filters:
-                count = uses[id(parent)]
-                filters[id(parent)] = [parent.filter.branch() for _ in range(count - 1)] + [
-                    parent.filter
-                ]
+                copies = [parent.filter.branch() for _ in range(uses[id(parent)] - 1)]
+                filters[id(parent)] = [*copies, parent.filter]
         previous_leader = self.leader
         kept = []
         for score, parent, association in survivors:
             ekf = filters[id(parent)].pop()
-            log = _BranchLog(list(ekf.recorder.calls))
+            log = _BranchLog(list(parent.filter.recorder.calls))
             ekf.recorder = log
             points, noise = ekf.scan_inputs(scan)
             ekf.apply_association(scan, points, noise, association)
@@ -248,3 +250,27 @@ class MultiHypothesisEkfSlam:
             "and the map are the final most likely hypothesis's, the causal trajectory each time's leader",
         )
         return self.recorder.build(landmarks=final_map, notes=notes)
+
+
+def _view_test(sequence: Sequence):
+    """Predicted sightings (m, d) in the body frame -> (m,) inside the landmark sensor's
+    horizontal field of view and range (the sequence's ``NoiseSpec``); a missing limit
+    does not limit."""
+    noise = sequence.noise
+    half = (
+        None
+        if noise.landmark_field_of_view_deg is None
+        else np.deg2rad(noise.landmark_field_of_view_deg) / 2
+    )
+    reach = noise.landmark_range_m
+
+    def inside(points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=float)
+        visible = np.ones(len(points), dtype=bool)
+        if half is not None:
+            visible &= np.abs(np.arctan2(points[:, 1], points[:, 0])) <= half
+        if reach is not None:
+            visible &= np.linalg.norm(points, axis=1) <= reach
+        return visible
+
+    return inside
