@@ -3,7 +3,8 @@
 A *hypothesis* assigns every sighting of a scan either to a distinct map landmark or to a
 new landmark. Its score is the log likelihood of the scan under it, the hypothesis
 probability of multiple hypothesis tracking (Reid 1979, eq. 16; for a landmark map, Cox and
-Leonard 1994, section 3) without clutter or missed-detection terms:
+Leonard 1994, section 3) without a clutter term, the missed-detection term optional
+(``detection_probability``):
 
     log L = log N(nu; 0, S) + n_new * log(lambda_new)
 
