@@ -530,12 +530,16 @@ class EkfSlam:
     def estimate(self) -> Estimate:
         final_map = self._map_snapshot(self.t)
         self.recorder.final_snapshot(final_map)
+        return self.recorder.build(landmarks=final_map, notes=(self.summary_note("ekf-slam"),))
+
+    def summary_note(self, name: str, extra_gaps: int = 0) -> str:
+        """The run's note on its input, association and map, headed ``name``;
+        ``extra_gaps``: motion gaps counted outside the filter (``multi_hypothesis``)."""
         single = int(sum(1 for count in self.sightings if count == 1))
-        notes = (
-            f"ekf-slam: motion input {self.input.value}, association {'+'.join(sorted(self.association_modes)) or 'none'}, "
-            f"{len(self.map_ids)} landmarks mapped ({single} seen only once), {self.gaps} motion gaps > {self.config.max_gap_s} s",
+        return (
+            f"{name}: motion input {self.input.value}, association {'+'.join(sorted(self.association_modes)) or 'none'}, "
+            f"{len(self.map_ids)} landmarks mapped ({single} seen only once), {self.gaps + extra_gaps} motion gaps > {self.config.max_gap_s} s"
         )
-        return self.recorder.build(landmarks=final_map, notes=notes)
 
 
 class _MapPredictor:

@@ -233,18 +233,16 @@ class MultiHypothesisEkfSlam:
         while history is not None:
             history, calls = history
             chain.append(calls)
-        for calls in reversed(chain):
+        chain.reverse()
+        chain.append(winner.filter.recorder.calls)  # after the last scan
+        for calls in chain:
             for name, args, kwargs in calls:
                 getattr(self.recorder, name)(*args, **kwargs)
-        for name, args, kwargs in winner.filter.recorder.calls:  # after the last scan
-            getattr(self.recorder, name)(*args, **kwargs)
         ekf = winner.filter
         final_map = ekf._map_snapshot(self.t)
         self.recorder.final_snapshot(final_map)
-        single = int(sum(1 for count in ekf.sightings if count == 1))
         notes = (
-            f"ekf-slam-mht: motion input {ekf.input.value}, association {'+'.join(sorted(ekf.association_modes)) or 'none'}, "
-            f"{len(ekf.map_ids)} landmarks mapped ({single} seen only once), {self.gaps + ekf.gaps} motion gaps > {self.config.max_gap_s} s",
+            ekf.summary_note("ekf-slam-mht", extra_gaps=self.gaps),
             f"ekf-slam-mht: up to {self.peak} hypotheses kept (max_hypotheses={self.config.max_hypotheses}), "
             f"the leader switched to another history after {self.switches} scans; associations, NIS "
             "and the map are the final most likely hypothesis's, the causal trajectory each time's leader",
