@@ -252,3 +252,51 @@ def test_the_landmark_disturbance_is_zero_unless_the_paper_preset_or_the_option_
     assert landmark_disturbance(SensorBasedConfig(tuning="paper")) == PAPER_LANDMARK_SIGMA_M == 0.05
     assert landmark_disturbance(SensorBasedConfig(tuning="paper", sigma_landmark_m=0.0)) == 0.0
     assert landmark_disturbance(SensorBasedConfig(sigma_landmark_m=0.02)) == 0.02
+
+
+def _odometry_only(sequence, shift_s: float):
+    """``sequence``'s gyro samples as relative-pose odometry without ``dt`` (the sample
+    interval is then the time since the previous sample), every time shifted by
+    ``shift_s``."""
+    from dataclasses import replace
+
+    from datasets.measurements import Odometry, Sensor
+
+    stream, previous = [], None
+    for measurement in sequence.measurements():
+        t = measurement.t + shift_s
+        if isinstance(measurement, GyroSample):
+            if previous is not None:
+                dt = t - previous
+                stream.append(
+                    Odometry(
+                        t=t,
+                        covariance=np.diag([1e-4, 1e-4, 1e-5]),
+                        relative_pose=np.array([1.0 * dt, 0.0, float(measurement.rate[0]) * dt]),
+                    )
+                )
+            previous = t
+        else:
+            stream.append(replace(measurement, t=t))
+    start = replace(sequence.initial_state, t=sequence.initial_state.t + shift_s)
+    return replace(
+        sequence,
+        sensors=frozenset({Sensor.ODOMETRY, Sensor.LANDMARKS}),
+        stream=lambda: iter(stream),
+        initial_state=start,
+    )
+
+
+def test_odometry_without_dt_reads_the_same_whether_the_run_starts_at_zero_or_later() -> None:
+    """The rate taken from relative-pose odometry without ``dt`` uses the time since the
+    previous sample; a run starting at t = 0 once dropped its first increment (a previous
+    time of 0.0 read as 'no previous sample'), so the same data shifted in time differed."""
+    landmarks = np.array([[4.0, 3.0], [-3.0, 5.0], [2.0, -4.0], [-5.0, -2.0]])
+    base = planar_sequence(3.0, (1.0, 0.0), 0.3, landmarks)
+    headings = []
+    for shift in (0.0, 7.0):
+        _, estimate = run(SensorBasedSlam, SensorBasedConfig(), _odometry_only(base, shift))
+        pose = estimate.causal.pose
+        headings.append(float(pose.rotations[-1]))
+        assert pose.t[-1] == pytest.approx(3.0 + shift)
+    assert headings[0] == pytest.approx(headings[1], abs=1e-9)

@@ -118,10 +118,11 @@ state stays so that the model is the paper's) [rad/s]."""
 
 def _interval(odometry: Odometry, previous_t: float | None) -> float:
     """An odometry sample's interval [s]: its own ``dt``, else the time since the previous
-    sample (0 for the first, and, as this has always read, when the previous time is 0.0)."""
+    sample (0 for the first: ``previous_t`` None). A previous time of 0.0 is a time like any
+    other (a run starting at t = 0 once lost its first increment here)."""
     if odometry.dt is not None:
         return odometry.dt
-    return odometry.t - (previous_t or odometry.t)
+    return 0.0 if previous_t is None else odometry.t - previous_t
 
 
 class SensorBasedSlam:
