@@ -453,6 +453,45 @@ def test_landmark_seen_once_is_kept_or_pruned() -> None:
     assert any(event.kind == "landmarks_pruned" for event in pruned.diagnostics.events)
 
 
+def test_a_one_off_sighting_is_provisional_and_dropping_it_is_exact() -> None:
+    """The landmark initialisation delay (``prune_single_sightings_after_s``): a landmark is
+    provisional until a second sighting; one never seen again is marginalised out. One
+    sighting of a new landmark carries no information on the rest of the state, so the run
+    with a one-off clutter sighting (no ids) must read exactly as the run without it: the
+    same trajectory, covariances and map, one landmark pruned, and its sighting recorded."""
+    clean = planar_world(ids=False, noise_free=False, seed=3, steps=200)
+    measurements = list(clean.measurements())
+    scans = [index for index, m in enumerate(measurements) if isinstance(m, LandmarkScan)]
+    target = measurements[scans[10]]
+    measurements[scans[10]] = LandmarkScan(
+        t=target.t,
+        points=np.vstack([target.points, [[30.0, -20.0]]]),  # far from every landmark
+        covariances=np.concatenate([target.covariances, np.eye(2)[None] * 0.01]),
+    )
+    cluttered = Sequence(
+        name="test:clutter",
+        dimension=2,
+        sensors=clean.sensors,
+        stream=lambda: iter(measurements),
+        initial_state=clean.initial_state,
+    )
+    _, reference = run(clean, prune_single_sightings_after_s=1.0)
+    _, delayed = run(cluttered, prune_single_sightings_after_s=1.0)
+    _, kept = run(cluttered)
+    assert len(kept.landmarks) == len(reference.landmarks) + 1
+    assert len(delayed.landmarks) == len(reference.landmarks)
+    pruned = [event for event in delayed.diagnostics.events if event.kind == "landmarks_pruned"]
+    assert len(pruned) == 1 and len(pruned[0].details["map_ids"]) == 1
+    assert len(delayed.diagnostics.assoc_t) == len(reference.diagnostics.assoc_t) + 1
+    ours, theirs = delayed.causal.pose, reference.causal.pose
+    np.testing.assert_allclose(ours.positions, theirs.positions, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ours.rotations, theirs.rotations, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ours.covariances, theirs.covariances, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        delayed.landmarks.positions, reference.landmarks.positions, rtol=0, atol=1e-9
+    )
+
+
 # ---------------------------------------------------------------- real data
 @pytest.mark.skipif(not UTIAS.is_dir(), reason=f"UTIAS MRCLAM data absent (expected at {UTIAS})")
 def test_utias_robot1_first_200_s_with_ids() -> None:

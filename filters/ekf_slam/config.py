@@ -71,7 +71,10 @@ class EkfSlamConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOption
     prune_single_sightings_after_s: float | None = Field(
         None,
         gt=0,
-        description="delete a landmark seen only once when this long has passed (None: keep every landmark)",
+        description="landmark initialisation delay [s]: a new landmark is provisional until a "
+        "second sighting; one not sighted again this long after its first is marginalised out "
+        "(exact: one sighting carries no information on the rest of the state; "
+        "docs/association.md). None: keep every landmark",
     )
 
 

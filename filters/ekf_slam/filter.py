@@ -20,7 +20,10 @@ al. 2001):
   own landmark only).
 - *Landmark initialisation* on first sight with the full cross-covariances
   (``filters.kalman.augment``): ``l = p + R z``, ``P_ll = G_v P_vv G_v^T + R Sigma_z R^T``,
-  ``P_lx = G_v P_vx``.
+  ``P_lx = G_v P_vx``. With ``prune_single_sightings_after_s`` (the initialisation delay)
+  a landmark stays provisional until its second sighting and is marginalised out if none
+  comes in time: exact, since one sighting of a new landmark carries no information on the
+  rest of the state.
 
 Diagnostics: the stacked NIS of every scan update and the NIS of each associated sighting
 (``d`` dof), one association decision for every sighting, the landmark count after every
@@ -464,7 +467,9 @@ class EkfSlam:
         return len(self.map_ids) - 1
 
     def _prune(self, t: float) -> None:
-        """Delete landmarks seen once and older than ``prune_single_sightings_after_s`` (marginalise)."""
+        """Marginalise out the provisional landmarks (seen once) older than
+        ``prune_single_sightings_after_s``: the landmark initialisation delay (module
+        docstring)."""
         horizon = self.config.prune_single_sightings_after_s
         if horizon is None:
             return
