@@ -35,9 +35,7 @@ from scipy.stats import chi2
 
 from datasets.errors import InputError
 from datasets.odometry_noise import OdometryNoiseModel
-from datasets.rotations import rot2_batch, wrap_angle
-
-PLANAR_GENERATOR = np.array([[0.0, -1.0], [1.0, 0.0]])
+from datasets.rotations import PLANAR_GENERATOR, rot2_batch, wrap_angle
 
 
 @dataclass(frozen=True)

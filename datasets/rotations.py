@@ -97,6 +97,11 @@ def wrap_angle(angle_rad: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(angle_rad) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+PLANAR_GENERATOR = np.array([[0.0, -1.0], [1.0, 0.0]])
+"""The generator of planar rotations, ``d rot2(a) / da = PLANAR_GENERATOR @ rot2(a)``
+(``J`` or ``S`` in the papers' equations: ``J v`` is ``v`` turned by +90 degrees)."""
+
+
 def rot2(angle_rad: float) -> np.ndarray:
     """Planar rotation matrix (2, 2) of an angle [rad]."""
     c, s = np.cos(angle_rad), np.sin(angle_rad)

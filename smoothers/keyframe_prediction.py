@@ -18,11 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from datasets.rotations import PLANAR_GENERATOR
 from filters.association import Innovation, innovation_statistics
 from smoothers.joint_marginals import JointMarginals, JointQuery
 from smoothers.landmark_book import MapLandmark
-
-PLANAR_J = np.array([[0.0, -1.0], [1.0, 0.0]])
 
 
 def predicted_measurements(pose, positions: np.ndarray, dimension: int) -> np.ndarray:
@@ -97,7 +96,9 @@ class KeyframePredictor:
                 skew = np.array([[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]])
                 jacobian[rows, :pose_dof] = np.hstack([skew, -np.eye(3)])
             else:
-                jacobian[rows, :pose_dof] = np.hstack([-np.eye(2), (-PLANAR_J @ h)[:, None]])
+                jacobian[rows, :pose_dof] = np.hstack(
+                    [-np.eye(2), (-PLANAR_GENERATOR @ h)[:, None]]
+                )
             jacobian[rows, pose_dof + row * d : pose_dof + (row + 1) * d] = self.rotation_t
         return jacobian
 

@@ -60,14 +60,12 @@ from gtsam.symbol_shorthand import V, X
 from datasets.errors import InputError
 from datasets.estimate import EstimateRecorder
 from datasets.measurements import GyroSample, Odometry
-from datasets.rotations import rot2, wrap_angle
+from datasets.rotations import PLANAR_GENERATOR, rot2, wrap_angle
 from datasets.sequence import InitialState
 from datasets.state import BlockName, Frame
 from smoothers.covariances import MarginalSource, pose_covariance, vector_covariance
 from smoothers.held_input import held_interval
 from smoothers.initialization import InitialPriors
-
-_S = np.array([[0.0, -1.0], [1.0, 0.0]])
 
 
 def compose_increment(
@@ -232,14 +230,14 @@ def constant_velocity_error(
     error[2] = float(wrap_angle(pose_next.theta() - pose_k.theta() - (dtheta_m - bias * dt)))
     d_pose_k = np.zeros((3, 3))
     d_pose_k[:2, :2] = -np.eye(2)
-    d_pose_k[:2, 2] = -_S @ delta_body
+    d_pose_k[:2, 2] = -PLANAR_GENERATOR @ delta_body
     d_pose_k[2, 2] = -1.0
     d_pose_next = np.zeros((3, 3))
     d_pose_next[:2, :2] = rotation_k.T @ pose_next.rotation().matrix()
     d_pose_next[2, 2] = 1.0
     d_state_k = np.zeros((3, 3))
     d_state_k[:2, :2] = -0.5 * midpoint * dt
-    d_state_k[:2, 2] = 0.5 * dt**2 * _S @ midpoint @ velocity
+    d_state_k[:2, 2] = 0.5 * dt**2 * PLANAR_GENERATOR @ midpoint @ velocity
     d_state_k[2, 2] = dt
     d_state_next = np.zeros((3, 3))
     d_state_next[:2, :2] = -0.5 * midpoint * dt
@@ -266,7 +264,7 @@ def motion_factor_covariance(
     constraint)."""
     state_estimate = np.asarray(state_estimate, dtype=float)
     phi = midpoint_angle(dtheta_m, float(state_estimate[2]), dt)
-    u = np.append(-0.5 * dt * _S @ rot2(phi) @ state_estimate[:2], -1.0)
+    u = np.append(-0.5 * dt * PLANAR_GENERATOR @ rot2(phi) @ state_estimate[:2], -1.0)
     covariance = gyro_density**2 * dt * np.outer(u, u)
     covariance[:2, :2] += np.diag(
         np.broadcast_to(np.asarray(velocity_walk, float), (2,)) ** 2 * dt**3 / 12.0

@@ -50,6 +50,7 @@ from datasets.estimator_options import per_body_axis
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Odometry, Sensor
 from datasets.odometry_noise import OdometryNoiseModel
 from datasets.rotations import (
+    PLANAR_GENERATOR,
     matrix_from_quat_wxyz,
     quat_wxyz_from_matrix,
     skew,
@@ -65,7 +66,6 @@ from filters.ekf_slam.boundary import pose_covariance_to_interface
 from filters.ekf_slam.config import EkfSlamConfig
 from filters.ekf_slam.layout import VehicleLayout
 from filters.ekf_slam.motion import (
-    PLANAR_J,
     GyroNoise,
     VehicleMean,
     predict_gyro_cv,
@@ -284,7 +284,8 @@ class EkfSlam:
             # p_{k|k-1} instead of the updated p_{k|k}
             step = new.position - self.predicted_position
             transition = transition.copy()
-            transition[self.layout.position, self.layout.rotation] = (PLANAR_J @ step)[:, None]
+            layout = self.layout
+            transition[layout.position, layout.rotation] = (PLANAR_GENERATOR @ step)[:, None]
             self.predicted_position = new.position.copy()
         kalman.propagate_vehicle(self.covariance, self.vehicle_size, transition, process)
         self.vehicle = new

@@ -27,11 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from datasets.rotations import rot2, skew, so3_exp, wrap_angle
+from datasets.rotations import PLANAR_GENERATOR, rot2, skew, so3_exp, wrap_angle
 from filters.ekf_slam.layout import VehicleLayout
-
-PLANAR_J = np.array([[0.0, -1.0], [1.0, 0.0]])
-"""``d rot2(a) / da = PLANAR_J @ rot2(a)`` (the planar cross-product generator)."""
 
 
 @dataclass(frozen=True)
@@ -69,7 +66,7 @@ def predict_odometry_2d(
     rotation = rot2(heading)
     u_xy, u_theta = np.asarray(increment[:2], float), float(increment[2])
     transition = np.eye(layout.size)
-    transition[layout.position, layout.rotation] = (PLANAR_J @ rotation @ u_xy)[:, None]
+    transition[layout.position, layout.rotation] = (PLANAR_GENERATOR @ rotation @ u_xy)[:, None]
     input_jacobian = np.zeros((layout.size, 3))
     input_jacobian[layout.position, 0:2] = rotation
     input_jacobian[layout.rotation, 2] = 1.0
@@ -96,7 +93,7 @@ def compose_planar(
     rotation = rot2(float(first[2]))
     turned = rotation @ second[:2]
     first_jacobian = np.eye(3)
-    first_jacobian[0:2, 2] = PLANAR_J @ turned
+    first_jacobian[0:2, 2] = PLANAR_GENERATOR @ turned
     second_jacobian = np.eye(3)
     second_jacobian[0:2, 0:2] = rotation
     composed = np.array([first[0] + turned[0], first[1] + turned[1], first[2] + second[2]])
@@ -178,7 +175,7 @@ def predict_gyro_cv(
         new_velocity = turn @ velocity
         rate_jacobian[layout.rotation, 0] = dt
         if rotate_velocity and layout.velocity is not None:
-            rate_jacobian[layout.velocity, 0] = dt * PLANAR_J @ new_velocity
+            rate_jacobian[layout.velocity, 0] = dt * PLANAR_GENERATOR @ new_velocity
         new_rotation: float | np.ndarray = float(
             wrap_angle(float(mean.rotation) + corrected[0] * dt)
         )

@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets.rotations import skew
+from datasets.rotations import PLANAR_GENERATOR, skew
 from filters.ekf_slam.layout import VehicleLayout
-from filters.ekf_slam.motion import PLANAR_J, VehicleMean
+from filters.ekf_slam.motion import VehicleMean
 
 
 def predict_observations(
@@ -55,7 +55,7 @@ def predict_observations(
     vehicle = np.zeros((m, d, layout.size))
     vehicle[:, :, layout.position] = -rotation.T
     if d == 2:
-        vehicle[:, :, layout.rotation] = (-((lever @ rotation) @ PLANAR_J.T))[:, :, None]
+        vehicle[:, :, layout.rotation] = (-((lever @ rotation) @ PLANAR_GENERATOR.T))[:, :, None]
     else:
         vehicle[:, :, layout.rotation] = np.einsum(
             "ij,mjk->mik", rotation.T, np.array([skew(r) for r in lever]).reshape(m, 3, 3)
@@ -77,7 +77,7 @@ def initialise_landmark(
     vehicle = np.zeros((d, layout.size))
     vehicle[:, layout.position] = np.eye(d)
     if d == 2:
-        vehicle[:, layout.rotation] = (PLANAR_J @ world_offset)[:, None]
+        vehicle[:, layout.rotation] = (PLANAR_GENERATOR @ world_offset)[:, None]
     else:
         vehicle[:, layout.rotation] = -skew(world_offset)
     return mean.position + world_offset, vehicle, rotation
@@ -88,7 +88,7 @@ def rotation_null_rows(points: np.ndarray) -> np.ndarray:
     ``J x`` (2-D, (m, 2, 1)) or ``-[x]x`` (3-D, (m, 3, 3))."""
     points = np.asarray(points, float)
     if points.shape[1] == 2:
-        return (points @ PLANAR_J.T)[:, :, None]
+        return (points @ PLANAR_GENERATOR.T)[:, :, None]
     return -np.array([skew(point) for point in points])
 
 

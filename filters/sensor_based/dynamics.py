@@ -31,7 +31,7 @@ from typing import Literal
 
 import numpy as np
 
-PLANAR_S = np.array([[0.0, -1.0], [1.0, 0.0]])
+from datasets.rotations import PLANAR_GENERATOR
 
 
 def rate_dimension(dimension: int) -> int:
@@ -43,7 +43,7 @@ def skew_rate(rate: np.ndarray, dimension: int) -> np.ndarray:
     """``S(rate)``, (d, d): 2-D ``rate[0] * [[0,-1],[1,0]]``, 3-D the cross-product matrix."""
     rate = np.asarray(rate, dtype=float).ravel()
     if dimension == 2:
-        return float(rate[0]) * PLANAR_S
+        return float(rate[0]) * PLANAR_GENERATOR
     x, y, z = rate
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 

@@ -71,16 +71,15 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import block_diag
 
-from datasets.rotations import skew
-from filters.sensor_based.dynamics import PLANAR_S
+from datasets.rotations import PLANAR_GENERATOR, skew
 
 
 def rotation_lever(vectors: np.ndarray) -> np.ndarray:
     """``J v`` (n, d, r) for vectors (n, d): the change of a world-frame vector under a small
-    world rotation ``dphi``; 2-D ``PLANAR_S v`` (r = 1), 3-D ``-[v]x`` (r = 3)."""
+    world rotation ``dphi``; 2-D ``PLANAR_GENERATOR v`` (r = 1), 3-D ``-[v]x`` (r = 3)."""
     vectors = np.asarray(vectors, dtype=float)
     if vectors.shape[1] == 2:
-        return (vectors @ PLANAR_S.T)[:, :, None]
+        return (vectors @ PLANAR_GENERATOR.T)[:, :, None]
     return -np.stack([skew(vector) for vector in vectors])
 
 
