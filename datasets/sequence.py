@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from datasets.detection_probability import DetectionProbability
 from datasets.measurements import Measurement, Sensor
 from datasets.odometry_noise import OdometryNoiseModel
 from datasets.sighting_correlation import SightingCorrelation
@@ -39,6 +40,9 @@ class NoiseSpec:
         sighting_correlation: how the errors of consecutive sightings of one landmark are
             correlated in time (``datasets.sighting_correlation``; every estimator's
             association policy inflates their noise by it), or None: independent.
+        landmark_detection: how often the landmark sensor sights a landmark inside its view,
+            by range (``datasets.detection_probability``; ``ekf-slam-mht`` scores missed
+            detections with it), or None: not stated.
         rate_hz: nominal sample rate of each sensor.
     """
 
@@ -54,6 +58,7 @@ class NoiseSpec:
     landmark_field_of_view_deg: float | None = None
     landmark_range_m: float | None = None
     sighting_correlation: SightingCorrelation | None = None
+    landmark_detection: DetectionProbability | None = None
     rate_hz: dict[str, float] = field(default_factory=dict)
 
 

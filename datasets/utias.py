@@ -70,6 +70,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, NonNegativeFloat, PositiveFloat
 
+from datasets.detection_probability import DetectionProbability, fit_detection_probability
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, LandmarkScan, Measurement, Odometry, Sensor
 from datasets.odometry_calibration import speed_factors
@@ -193,6 +194,13 @@ class UtiasOptions(BaseModel):
         "max(0, 1 - coupling * |commanded turn rate|); 'fit' as for the speed (dataset 1: "
         "Vicon over commanded speed 1.02-1.03 driving straight, 0.59-0.62 at 0.3-0.6 rad/s, "
         "on every robot); 0 keeps the speed independent of the turn",
+    )
+    detection_probability: Literal["fit", "none"] = Field(
+        "fit",
+        description="'fit': how often the camera sights a barcode in its view, by range "
+        "(datasets.detection_probability), fitted at load against this robot's Vicon and the "
+        "surveyed map over the whole recording (dataset 1: 0.5-0.8 within 3 m, 0.15-0.25 "
+        "beyond 5 m); ekf-slam-mht scores missed detections with it; 'none': not stated",
     )
 
 
@@ -423,6 +431,19 @@ def load_mrclam(
     correlation = _sighting_correlation(
         config, every_scan, vicon, _swapped_survey(surveyed, subject_of, swaps), subject_of, name
     )
+    bearings = np.abs(sightings.values[:, 3])
+    # the camera's view: the widest bearing and longest range among the sightings
+    field_of_view = float(np.rad2deg(2.0 * bearings.max())) if len(bearings) else None
+    reach = float(sightings.values[:, 2].max()) if len(bearings) else None
+    detection = _detection_probability(
+        config,
+        every_scan,
+        vicon,
+        _swapped_survey(surveyed, subject_of, swaps),
+        subject_of,
+        (field_of_view, reach),
+        name,
+    )
     recording_span = (float(odo_t[0]), float(odo_t[-1]))
     if config.duration_s is not None:
         keep = odo_t <= config.duration_s
@@ -471,16 +492,13 @@ def load_mrclam(
             np.column_stack([speeds * step, np.zeros(len(speeds)), odo_values[:, 1] * step]),
             np.full(len(speeds), step),
         )
-    bearings = np.abs(sightings.values[:, 3])
     noise = NoiseSpec(
         gyro_noise_density=gyro_density,
         odometry=odometry_model,
-        # the camera's: the widest bearing and longest range among the sightings
-        landmark_field_of_view_deg=float(np.rad2deg(2.0 * bearings.max()))
-        if len(bearings)
-        else None,
-        landmark_range_m=float(sightings.values[:, 2].max()) if len(bearings) else None,
+        landmark_field_of_view_deg=field_of_view,
+        landmark_range_m=reach,
         sighting_correlation=correlation,
+        landmark_detection=detection,
         rate_hz={"odometry": 1.0 / step, "gyro": 1.0 / step},
     )
     start_velocity = ground_truth.history.block(BlockName.VELOCITY).values[0]
@@ -541,6 +559,7 @@ def load_mrclam(
         "odometry_noise": None if odometry_model is None else odometry_model.as_dict(),
         "odometry_scales": scales,
         "sighting_correlation": None if correlation is None else correlation.as_dict(),
+        "detection_probability": None if detection is None else detection.as_dict(),
     }
     return Sequence(
         name=name,
@@ -859,6 +878,35 @@ def _sighting_correlation(
         raise InputError(
             f"{name}: sighting_correlation=fit: {error} (use --data sighting_correlation=none)"
         ) from None
+
+
+def _detection_probability(
+    config: UtiasOptions,
+    scans: list[LandmarkScan],
+    vicon: tuple,
+    location: dict[int, np.ndarray],
+    subject_of: dict[int, int],
+    view: tuple[float | None, float | None],
+    name: str,
+) -> DetectionProbability | None:
+    """How often the camera sights a barcode in its ``view`` (field of view [deg], range
+    [m]), by range (``datasets.detection_probability``): ``fit`` against this robot's Vicon
+    poses and the surveyed map (label swaps applied) over the whole recording, or none."""
+    if config.detection_probability == "none":
+        return None
+    barcode_of = {subject: barcode for barcode, subject in subject_of.items()}
+    landmarks = {
+        int(barcode_of[subject]): np.asarray(position, float)
+        for subject, position in location.items()
+        if subject in barcode_of and subject not in ROBOT_SUBJECTS
+    }
+    return fit_detection_probability(
+        [(scan.t, np.asarray(scan.ids, int)) for scan in scans],
+        vicon,
+        landmarks,
+        *view,
+        f"fitted at load against {name}'s Vicon poses and the surveyed map ({len(scans)} scans)",
+    )
 
 
 def vicon_position_glitches(t: np.ndarray, xy: np.ndarray, max_speed_m_s: float) -> np.ndarray:

@@ -190,13 +190,15 @@ def test_simulated_loop_without_ids_is_consistent() -> None:
 
 
 def test_missed_detections_are_priced_for_landmarks_in_view() -> None:
-    # landmarks 0 and 1 in view, 2 and 3 out: each pairing adds log P_D, each landmark in
-    # view left unpaired log(1 - P_D), on top of the scores without the term
+    # landmarks 0 and 1 in view, 2 and 3 out, each with its own P_D (a model by range):
+    # each pairing adds log P_D, each landmark in view left unpaired log(1 - P_D), on top
+    # of the scores without the term
     predicted = np.array([[1.0, 0.0], [1.4, 0.1], [3.0, 1.0], [0.0, 2.0]])
     joint = 0.01 * np.eye(8)
     measured = np.array([[1.02, 0.01]])
     measured_cov = np.stack([np.diag([0.01, 0.01])])
     visible = np.array([True, True, False, False])
+    probability = np.array([0.3, 0.6, 0.2, 0.5])
     common = dict(gate_probability=0.9999, new_landmark_log_density=np.log(1e-3), count=4)
     plain = ranked_hypotheses(
         measured, measured_cov, 4, _FixedPredictor(predicted, joint), **common
@@ -206,14 +208,15 @@ def test_missed_detections_are_priced_for_landmarks_in_view() -> None:
         measured_cov,
         4,
         _FixedPredictor(predicted, joint),
-        detection_probability=0.3,
-        in_view=lambda points: visible[: len(points)],
+        detection=lambda points: (probability[: len(points)], visible[: len(points)]),
         **common,
     )
     before = {tuple(h.candidates): h.log_likelihood for h in plain}
+    assert len(priced) == len(plain) == 3  # pair with 0, with 1, or new
     for hypothesis in priced:
         paired = hypothesis.candidates[hypothesis.candidates >= 0]
-        unseen = np.count_nonzero(visible) - np.count_nonzero(visible[paired])
-        expected = before[tuple(hypothesis.candidates)] + len(paired) * np.log(0.3)
-        expected += unseen * np.log(0.7)
+        unseen = visible.copy()
+        unseen[paired] = False
+        expected = before[tuple(hypothesis.candidates)] + np.log(probability[paired]).sum()
+        expected += np.log1p(-probability[unseen]).sum()
         assert hypothesis.log_likelihood == pytest.approx(expected, abs=1e-9)

@@ -4,7 +4,7 @@ A *hypothesis* assigns every sighting of a scan either to a distinct map landmar
 new landmark. Its score is the log likelihood of the scan under it, the hypothesis
 probability of multiple hypothesis tracking (Reid 1979, eq. 16; for a landmark map, Cox and
 Leonard 1994, section 3) without a clutter term, the missed-detection term optional
-(``detection_probability``):
+(``detection``, below):
 
     log L = log N(nu; 0, S) + n_new * log(lambda_new)
 
@@ -77,8 +77,7 @@ def ranked_hypotheses(
     gate_probability: float,
     new_landmark_log_density: float,
     count: int,
-    detection_probability: float | None = None,
-    in_view: Callable[[np.ndarray], np.ndarray] | None = None,
+    detection: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> list[ScanHypothesis]:
     """The ``count`` most likely hypotheses of a scan, best first (module docstring).
 
@@ -88,10 +87,9 @@ def ranked_hypotheses(
         gate_probability: a pair outside this individual chi-square gate is no candidate.
         new_landmark_log_density: ``log(lambda_new)``, lambda_new in 1/m^d.
         count: how many to return (at least one: all sightings new is always feasible).
-        detection_probability: ``P_D``, with ``in_view`` (predicted sightings (m, d) -> (m,)
-            bool, inside the sensor's view): the missed-detection term, each pairing
-            ``log P_D`` and each landmark in view left unpaired ``log(1 - P_D)`` (Reid 1979,
-            eq. 16). None: no such term.
+        detection: predicted sightings (m, d) -> (``P_D`` (m,), inside the sensor's view
+            (m,) bool): the missed-detection term, each pairing ``log P_D`` and each landmark
+            in view left unpaired ``log(1 - P_D)`` (Reid 1979, eq. 16). None: no such term.
     """
     measured = np.asarray(measured, dtype=float)
     measured_cov = np.asarray(measured_cov, dtype=float)
@@ -109,14 +107,15 @@ def ranked_hypotheses(
         _, log_det = np.linalg.slogdet(2.0 * np.pi * innovation_cov)
         inside = distances < chi2_gate(d, gate_probability)
         pair_cost[inside] = 0.5 * (distances[inside] + log_det[inside])
-    detection = np.zeros(candidate_count)  # what pairing landmark i adds to log L beyond N
+    detection_term = np.zeros(candidate_count)  # what pairing landmark i adds to log L beyond N
     missed_total = 0.0  # log L of every landmark in view left unpaired
-    if candidate_count and detection_probability is not None and in_view is not None:
-        visible = np.asarray(in_view(predicted), dtype=bool)
-        missed = np.log1p(-detection_probability)
-        missed_total = missed * np.count_nonzero(visible)
-        detection = np.log(detection_probability) - np.where(visible, missed, 0.0)
-        pair_cost = pair_cost - detection[None, :]
+    if candidate_count and detection is not None:
+        probability, visible = detection(predicted)
+        missed = np.log1p(-np.asarray(probability, dtype=float))
+        visible = np.asarray(visible, dtype=bool)
+        missed_total = float(missed[visible].sum())
+        detection_term = np.log(probability) - np.where(visible, missed, 0.0)
+        pair_cost = pair_cost - detection_term[None, :]
     new_cost = np.full((k, k), np.inf)
     np.fill_diagonal(new_cost, -float(new_landmark_log_density))
     cost = np.hstack([pair_cost, new_cost])
@@ -144,7 +143,7 @@ def ranked_hypotheses(
             measured_cov[paired],
         )
         score += (k - paired.size) * float(new_landmark_log_density)
-        score += missed_total + detection[candidates[paired]].sum()
+        score += missed_total + detection_term[candidates[paired]].sum()
         hypotheses.append(ScanHypothesis(score, candidates, nis))
     hypotheses.sort(key=lambda hypothesis: -hypothesis.log_likelihood)
     return hypotheses[: max(1, count)]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import ConfigDict, Field
 
@@ -100,11 +100,12 @@ class MultiHypothesisEkfSlamConfig(EkfSlamConfig):
         description="density of sightings of landmarks not yet mapped in the sighting space "
         "[1/m^d]: the likelihood of a 'new landmark' interpretation of a sighting",
     )
-    detection_probability: float | None = Field(
-        None,
-        gt=0,
-        lt=1,
-        description="probability that a landmark predicted inside the sensor's view (the "
-        "sequence's landmark_field_of_view_deg and landmark_range_m) is sighted in a scan: a "
-        "hypothesis pays log(1 - P_D) for each one it leaves unsighted; None: no such term",
+    detection_probability: Annotated[float, Field(gt=0, lt=1)] | Literal["sequence", "off"] = Field(
+        "sequence",
+        description="P_D, the probability that a landmark predicted inside the sensor's "
+        "view (the sequence's landmark_field_of_view_deg and landmark_range_m) is sighted "
+        "in a scan: a hypothesis pays log(1 - P_D) for each one it leaves unsighted and "
+        "gains log P_D for each it pairs (Reid 1979, eq. 16). 'sequence': the sequence's "
+        "stated P_D by range (NoiseSpec.landmark_detection; UTIAS fits one at load), no "
+        "such term where it states none; a number: that P_D at every range; 'off': no term",
     )

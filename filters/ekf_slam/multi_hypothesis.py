@@ -37,12 +37,14 @@ every sample.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 from pydantic import BaseModel
 
+from datasets.detection_probability import in_view
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
 from datasets.measurements import LandmarkScan, Measurement, Odometry, Sensor
@@ -118,7 +120,7 @@ class MultiHypothesisEkfSlam:
         self.clock = StreamClock(f"ekf-slam-mht on {sequence.name}", first.t)
         self.t = first.t
         self.log_density = math.log(config.new_landmark_density)
-        self.in_view = _view_test(sequence) if config.detection_probability else None
+        self.detection = _detection_model(config.detection_probability, sequence)
         self.gaps = 0
         self.switches = 0
         self.peak = 1
@@ -184,8 +186,7 @@ class MultiHypothesisEkfSlam:
                 gate_probability=self.config.new_landmark_probability,
                 new_landmark_log_density=self.log_density,
                 count=INTERPRETATIONS_PER_SCAN,
-                detection_probability=self.config.detection_probability,
-                in_view=self.in_view,
+                detection=self.detection,
             ):
                 children.append(
                     (
@@ -250,25 +251,25 @@ class MultiHypothesisEkfSlam:
         return self.recorder.build(landmarks=final_map, notes=notes)
 
 
-def _view_test(sequence: Sequence):
-    """Predicted sightings (m, d) in the body frame -> (m,) inside the landmark sensor's
-    horizontal field of view and range (the sequence's ``NoiseSpec``); a missing limit
-    does not limit."""
+def _detection_model(
+    setting: float | str, sequence: Sequence
+) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None:
+    """The missed-detection term's model (``hypotheses.ranked_hypotheses``): predicted
+    sightings (m, d) in the body frame -> (``P_D`` (m,), inside the landmark sensor's view
+    (m,)), the view being the sequence's horizontal field of view and range (a missing limit
+    does not limit). ``setting``: a constant ``P_D``, ``"sequence"`` (the sequence's
+    ``P_D`` by range, ``NoiseSpec.landmark_detection``; None where it states none) or
+    ``"off"`` (None)."""
     noise = sequence.noise
-    half = (
-        None
-        if noise.landmark_field_of_view_deg is None
-        else np.deg2rad(noise.landmark_field_of_view_deg) / 2
-    )
-    reach = noise.landmark_range_m
+    if setting == "off" or (setting == "sequence" and noise.landmark_detection is None):
+        return None
+    stated = noise.landmark_detection if setting == "sequence" else None
 
-    def inside(points: np.ndarray) -> np.ndarray:
+    def model(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         points = np.asarray(points, dtype=float)
-        visible = np.ones(len(points), dtype=bool)
-        if half is not None:
-            visible &= np.abs(np.arctan2(points[:, 1], points[:, 0])) <= half
-        if reach is not None:
-            visible &= np.linalg.norm(points, axis=1) <= reach
-        return visible
+        visible = in_view(points, noise.landmark_field_of_view_deg, noise.landmark_range_m)
+        if stated is None:
+            return np.full(len(points), float(setting)), visible
+        return stated.at(np.linalg.norm(points, axis=1)), visible
 
-    return inside
+    return model
