@@ -892,8 +892,8 @@ def _detection_probability(
     """How often the camera sights a barcode in its ``view`` (field of view [deg], range
     [m]), by range (``datasets.detection_probability``): ``fit`` against this robot's Vicon
     poses and the surveyed map (label swaps applied) over the whole recording, or none."""
-    if config.detection_probability == "none":
-        return None
+    if config.detection_probability == "none" or not scans:
+        return None  # nothing to fit from: a recording without sightings states none
     barcode_of = {subject: barcode for barcode, subject in subject_of.items()}
     landmarks = {
         int(barcode_of[subject]): np.asarray(position, float)

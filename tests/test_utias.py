@@ -305,3 +305,20 @@ def test_label_swaps_are_detected_from_the_sightings_not_assumed() -> None:
         for s in scans
     ]
     assert detect_label_swaps(honest, truth_t, truth_xy, heading, subject_of, surveyed) == []
+
+
+@needs_data
+def test_detection_probability_is_fitted_by_range_against_vicon(robot1) -> None:
+    """The camera sights a barcode in view far more often near than far (robot 1: about
+    0.7 within 1-3 m, under 0.1 beyond 6 m): one P_D for all ranges would misprice both."""
+    sequence, _ = robot1
+    model = sequence.noise.landmark_detection
+    assert model is not None and "Vicon" in model.source
+    near = model.at(np.array([1.5, 2.5]))
+    far = model.at(np.array([6.5, 7.5]))
+    assert np.all((near > 0.55) & (near < 0.85)) and np.all(far < 0.15)
+    assert sequence.metadata["detection_probability"]["counts"] == list(model.counts)
+    assert (
+        load(f"{UTIAS}#robot1", 0, {"detection_probability": "none"}).noise.landmark_detection
+        is None
+    )
