@@ -150,7 +150,7 @@ class EkfSlam:
         self.gaps = 0
         self.association_modes: set[str] = set()
         self.last_rate: np.ndarray | None = None
-        self._record()
+        self.record_state()
 
     def branch(self) -> EkfSlam:
         """An independent copy of the filter's state (mean, covariance, map, association
@@ -202,7 +202,7 @@ class EkfSlam:
             self._motion(measurement)
         else:
             return
-        self._record()
+        self.record_state()
 
     def _motion(self, measurement: Measurement) -> None:
         dt = float(measurement.t) - self.motion_t
@@ -296,7 +296,7 @@ class EkfSlam:
     def _scan(self, scan: LandmarkScan) -> None:
         points, noise = self.scan_inputs(scan)
         mode = self.policy.mode(scan.ids, scan.t)
-        predictor = _MapPredictor(self)
+        predictor = MapPredictor(self)
         if mode == "ids":
             association = self.policy.by_ids(
                 scan.ids, points, noise, np.array(self.source_ids, dtype=int), predictor
@@ -346,7 +346,7 @@ class EkfSlam:
         self._prune(scan.t)
         self.recorder.landmark_count(scan.t, len(self.map_ids))
         if self.recorder.snapshot_due(scan.t):
-            self.recorder.landmarks(self._map_snapshot(scan.t))
+            self.recorder.landmarks(self.map_snapshot(scan.t))
 
     def _record_associations(
         self, t: float, association: ScanAssociation, created: dict[int, int]
@@ -495,14 +495,14 @@ class EkfSlam:
         self.recorder.event(t, "landmarks_pruned", map_ids=removed, reason="seen once")
 
     # ------------------------------------------------------------------ output
-    def _map_snapshot(self, t: float | None) -> LandmarkMap:
+    def map_snapshot(self, t: float | None) -> LandmarkMap:
         """The world map with its joint covariance (the landmark block of P)."""
         v = self.vehicle_size
         return LandmarkMap.from_joint(
             self.map_ids, self.landmarks, self.covariance[v:, v:], Frame.WORLD, t
         )
 
-    def _record(self, recorder: EstimateRecorder | None = None) -> None:
+    def record_state(self, recorder: EstimateRecorder | None = None) -> None:
         """Record the vehicle's posterior (pose, velocity, gyro bias) into ``recorder``
         (default: the filter's own)."""
         recorder = self.recorder if recorder is None else recorder
@@ -534,7 +534,7 @@ class EkfSlam:
             )
 
     def estimate(self) -> Estimate:
-        final_map = self._map_snapshot(self.t)
+        final_map = self.map_snapshot(self.t)
         self.recorder.final_snapshot(final_map)
         return self.recorder.build(landmarks=final_map, notes=(self.summary_note("ekf-slam"),))
 
@@ -548,7 +548,7 @@ class EkfSlam:
         )
 
 
-class _MapPredictor:
+class MapPredictor:
     """The association ``Predictor`` of the EKF's map (world landmarks seen from the
     vehicle): predictions and ``H P H^T`` with the state's correlations."""
 

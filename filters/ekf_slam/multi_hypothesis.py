@@ -52,7 +52,7 @@ from datasets.sequence import Sequence
 from datasets.stream_clock import StreamClock
 from filters.association.hypotheses import ranked_hypotheses
 from filters.ekf_slam.config import MultiHypothesisEkfSlamConfig
-from filters.ekf_slam.filter import EkfSlam, _MapPredictor, planar_odometry_step
+from filters.ekf_slam.filter import EkfSlam, MapPredictor, planar_odometry_step
 from filters.ekf_slam.motion import compose_planar
 
 INTERPRETATIONS_PER_SCAN = 6
@@ -141,9 +141,9 @@ class MultiHypothesisEkfSlam:
         else:
             return
         self.leader.filter.t = max(self.leader.filter.t, self.t)
-        self.leader.filter._record(self.recorder)
+        self.leader.filter.record_state(self.recorder)
         if isinstance(measurement, LandmarkScan) and self.recorder.snapshot_due(measurement.t):
-            self.recorder.landmarks(self.leader.filter._map_snapshot(measurement.t))
+            self.recorder.landmarks(self.leader.filter.map_snapshot(measurement.t))
 
     def _odometry(self, odometry: Odometry) -> None:
         """The leader predicts the sample; the others' composed increment grows by it."""
@@ -174,7 +174,7 @@ class MultiHypothesisEkfSlam:
             points, noise = ekf.scan_inputs(scan)
             if ekf.policy.mode(scan.ids, scan.t) == "ids":
                 association = ekf.policy.by_ids(
-                    scan.ids, points, noise, np.array(ekf.source_ids, dtype=int), _MapPredictor(ekf)
+                    scan.ids, points, noise, np.array(ekf.source_ids, dtype=int), MapPredictor(ekf)
                 )
                 children.append((hypothesis.log_likelihood, hypothesis, association))
                 continue
@@ -182,7 +182,7 @@ class MultiHypothesisEkfSlam:
                 points,
                 noise,
                 len(ekf.map_ids),
-                _MapPredictor(ekf),
+                MapPredictor(ekf),
                 gate_probability=self.config.new_landmark_probability,
                 new_landmark_log_density=self.log_density,
                 count=INTERPRETATIONS_PER_SCAN,
@@ -240,7 +240,7 @@ class MultiHypothesisEkfSlam:
             for name, args, kwargs in calls:
                 getattr(self.recorder, name)(*args, **kwargs)
         ekf = winner.filter
-        final_map = ekf._map_snapshot(self.t)
+        final_map = ekf.map_snapshot(self.t)
         self.recorder.final_snapshot(final_map)
         notes = (
             ekf.summary_note("ekf-slam-mht", extra_gaps=self.gaps),
