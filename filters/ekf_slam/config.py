@@ -94,6 +94,13 @@ class MultiHypothesisEkfSlamConfig(EkfSlamConfig):
         description="a hypothesis whose log likelihood is more than this below the best one's "
         "is dropped (natural log)",
     )
+    commit_after_s: float | None = Field(
+        None,
+        gt=0,
+        description="N-scan-back pruning [s]: the decisions made this long ago are fixed to "
+        "those of the best hypothesis, and hypotheses that differ there are dropped "
+        "(None: never fixed)",
+    )
     new_landmark_density: float = Field(
         1.5e-4,
         gt=0,

@@ -86,8 +86,8 @@ class _BranchLog:
 @dataclass
 class _Hypothesis:
     """One history of association decisions: its filter, its log likelihood, and its
-    recorded calls as a chain ``(earlier chain, calls of one scan)`` shared with its
-    siblings."""
+    recorded calls as a chain ``(earlier chain, calls of one scan, the scan's time [s])``
+    shared with its siblings (a common ancestor is the same node object)."""
 
     filter: EkfSlam
     log_likelihood: float
@@ -216,7 +216,8 @@ class MultiHypothesisEkfSlam:
             ekf.recorder = log
             points, noise = ekf.scan_inputs(scan)
             ekf.apply_association(scan, points, noise, association)
-            kept.append(_Hypothesis(ekf, score, (parent.history, log.take())))
+            kept.append(_Hypothesis(ekf, score, (parent.history, log.take(), float(scan.t))))
+        kept = self._committed(kept, float(scan.t))
         self.hypotheses = kept
         self.leader = kept[0]
         if survivors[0][1] is not previous_leader:
@@ -225,6 +226,27 @@ class MultiHypothesisEkfSlam:
         self.peak = max(self.peak, len(kept))
         self.recorder.extra("hypotheses", [scan.t, len(kept)])
 
+    def _committed(self, kept: list[_Hypothesis], t: float) -> list[_Hypothesis]:
+        """N-scan-back pruning (Blackman 2004, section IV.B; Cox and Hingorani 1996): the
+        decisions made more than ``commit_after_s`` before ``t`` are those of the best
+        hypothesis; every hypothesis that differs from it there is dropped. Without it the
+        kept hypotheses fill up with variants of old, settled choices (which of two copies
+        of one landmark an old sighting went to), and a recent alternative, the true one
+        among them, is pruned for want of room (UTIAS robot 2 without ids)."""
+        horizon = self.config.commit_after_s
+        if horizon is None or len(kept) == 1:
+            return kept
+
+        def ancestor(history: tuple | None) -> tuple | None:
+            while history is not None and history[2] > t - horizon:
+                history = history[0]
+            return history
+
+        settled = ancestor(kept[0].history)
+        if settled is None:
+            return kept
+        return [hypothesis for hypothesis in kept if ancestor(hypothesis.history) is settled]
+
     # ------------------------------------------------------------------ output
     def estimate(self) -> Estimate:
         self._catch_up()
@@ -232,7 +254,7 @@ class MultiHypothesisEkfSlam:
         chain = []
         history = winner.history
         while history is not None:
-            history, calls = history
+            history, calls, _ = history
             chain.append(calls)
         chain.reverse()
         chain.append(winner.filter.recorder.calls)  # after the last scan
