@@ -220,3 +220,29 @@ def test_missed_detections_are_priced_for_landmarks_in_view() -> None:
         expected = before[tuple(hypothesis.candidates)] + np.log(probability[paired]).sum()
         expected += np.log1p(-probability[unseen]).sum()
         assert hypothesis.log_likelihood == pytest.approx(expected, abs=1e-9)
+
+
+def test_n_scan_back_pruning_keeps_only_the_best_hypothesis_s_old_decisions() -> None:
+    """``commit_after_s``: every hypothesis kept descends from the best one's ancestor of
+    that long ago (its decisions then are settled); without it the kept hypotheses differ
+    in decisions older than that (simulated loop without ids, 6 s, 8 hypotheses)."""
+    sequence = load_dataset(
+        "sim:guerreiro-loop", 1, {"duration_s": "6", "odometry": "true", "ids": "false"}
+    )
+
+    def ancestors(horizon: float | None, cut_s: float) -> set[int]:
+        config = MultiHypothesisEkfSlamConfig(max_hypotheses=8, commit_after_s=horizon)
+        estimator = MultiHypothesisEkfSlam(config, sequence)
+        for measurement in sequence.measurements():
+            estimator.process(measurement)
+        assert len(estimator.hypotheses) > 1
+        found = set()
+        for hypothesis in estimator.hypotheses:
+            history = hypothesis.history
+            while history is not None and history[2] > estimator.t - cut_s:
+                history = history[0]
+            found.add(id(history))
+        return found
+
+    assert len(ancestors(None, 1.0)) > 1
+    assert len(ancestors(1.0, 1.0)) == 1
