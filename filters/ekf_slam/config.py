@@ -95,11 +95,13 @@ class MultiHypothesisEkfSlamConfig(EkfSlamConfig):
         "is dropped (natural log)",
     )
     commit_after_s: float | None = Field(
-        None,
+        30.0,
         gt=0,
         description="N-scan-back pruning [s]: the decisions made this long ago are fixed to "
-        "those of the best hypothesis, and hypotheses that differ there are dropped "
-        "(None: never fixed)",
+        "those of the best hypothesis, and hypotheses that differ there are dropped, leaving "
+        "room for alternatives of recent scans (UTIAS robot 2 without ids: 0.999 precision "
+        "with 30 s, 0.909 with 60 s, 0.920 without; docs/estimators/ekf-slam-mht.md). "
+        "None: never fixed",
     )
     new_landmark_density: float = Field(
         1.5e-4,

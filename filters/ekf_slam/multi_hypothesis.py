@@ -15,7 +15,11 @@ landmark inside its ``new_landmark_probability`` gate, or a new landmark of dens
 prediction. A hypothesis's score is the sum of its scans' log likelihoods, so the probability
 of a history of decisions given the data, up to a common constant (Reid 1979, eq. 16). The
 ``max_hypotheses`` best survive, and none less likely than the best by more than
-``hypothesis_log_window``. With ids the scan is decided by them (one child, no branching).
+``hypothesis_log_window``; decisions older than ``commit_after_s`` are settled to the best
+hypothesis's (N-scan-back pruning, ``_committed``). With the sequence's detection model
+(``NoiseSpec.landmark_detection``) the score includes Reid's missed-detection term: a
+landmark predicted in view and not sighted costs ``log(1 - P_D)`` at its range. With ids
+the scan is decided by them (one child, no branching).
 
 What the run records:
 - **causal**: after each step, the posterior of the hypothesis most likely *at that time*
