@@ -165,6 +165,7 @@ def test_utias_robot1_without_ids_keeps_the_right_association(utias_folder: Path
     assert multiple["association_recall"] >= 0.99
     assert multiple["ate_rmse_m"] < single["ate_rmse_m"]
     assert any("hypotheses kept" in note for note in estimate.notes)
+    assert any("sequence's P_D by range" in note for note in estimate.notes)
     assert len(estimate.diagnostics.extras["hypotheses"]) > 0
 
 

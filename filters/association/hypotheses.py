@@ -7,6 +7,7 @@ Leonard 1994, section 3) without a clutter term, the missed-detection term optio
 (``detection``, below):
 
     log L = log N(nu; 0, S) + n_new * log(lambda_new)
+            [+ sum_paired log P_D + sum_(in view, unpaired) log(1 - P_D)]
 
 - ``nu`` (p*d,): the stacked innovations of the p paired sightings, ``S`` their *joint*
   covariance ``H P H^T + R`` (the pose error correlates the sightings of one scan);

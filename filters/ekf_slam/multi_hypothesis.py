@@ -125,6 +125,14 @@ class MultiHypothesisEkfSlam:
         self.t = first.t
         self.log_density = math.log(config.new_landmark_density)
         self.detection = _detection_model(config.detection_probability, sequence)
+        stated = sequence.noise.landmark_detection
+        self.detection_note = (
+            "no missed-detection term"
+            if self.detection is None
+            else f"missed detections priced with P_D {config.detection_probability:g} in view"
+            if not isinstance(config.detection_probability, str)
+            else f"missed detections priced with the sequence's P_D by range ({stated.source})"
+        )
         self.gaps = 0
         self.switches = 0
         self.peak = 1
@@ -273,6 +281,12 @@ class MultiHypothesisEkfSlam:
             f"ekf-slam-mht: up to {self.peak} hypotheses kept (max_hypotheses={self.config.max_hypotheses}), "
             f"the leader switched to another history after {self.switches} scans; associations, NIS "
             "and the map are the final most likely hypothesis's, the causal trajectory each time's leader",
+            f"ekf-slam-mht: {self.detection_note}; decisions settled after "
+            + (
+                "never (commit_after_s=None)"
+                if self.config.commit_after_s is None
+                else f"{self.config.commit_after_s:g} s (N-scan-back pruning)"
+            ),
         )
         return self.recorder.build(landmarks=final_map, notes=notes)
 
