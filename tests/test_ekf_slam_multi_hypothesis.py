@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
 
+from datasets.errors import InputError
 from datasets.measurements import LandmarkScan, Odometry
 from datasets.utias import load
 from filters.association.hypotheses import _murty, ranked_hypotheses
@@ -247,3 +248,18 @@ def test_n_scan_back_pruning_keeps_only_the_best_hypothesis_s_old_decisions() ->
 
     assert len(ancestors(None, 1.0)) > 1
     assert len(ancestors(1.0, 1.0)) == 1
+
+
+def test_detection_probability_settings_parse_as_the_command_line_gives_them() -> None:
+    # --set values are read as YAML: each documented setting must survive that
+    from datasets.options import parse_options
+
+    def parsed(text: str):
+        config = parse_options(MultiHypothesisEkfSlamConfig, {"detection_probability": text}, "")
+        return config.detection_probability
+
+    assert parsed("sequence") == "sequence"
+    assert parsed("none") == "none"
+    assert parsed("0.4") == pytest.approx(0.4)
+    with pytest.raises(InputError):
+        parsed("1.5")

@@ -109,12 +109,14 @@ class MultiHypothesisEkfSlamConfig(EkfSlamConfig):
         description="density of sightings of landmarks not yet mapped in the sighting space "
         "[1/m^d]: the likelihood of a 'new landmark' interpretation of a sighting",
     )
-    detection_probability: Annotated[float, Field(gt=0, lt=1)] | Literal["sequence", "off"] = Field(
-        "sequence",
-        description="P_D, the probability that a landmark predicted inside the sensor's "
-        "view (the sequence's landmark_field_of_view_deg and landmark_range_m) is sighted "
-        "in a scan: a hypothesis pays log(1 - P_D) for each one it leaves unsighted and "
-        "gains log P_D for each it pairs (Reid 1979, eq. 16). 'sequence': the sequence's "
-        "stated P_D by range (NoiseSpec.landmark_detection; UTIAS fits one at load), no "
-        "such term where it states none; a number: that P_D at every range; 'off': no term",
-    )
+    detection_probability: Annotated[float, Field(gt=0, lt=1)] | Literal["sequence", "none"] = (
+        Field(
+            "sequence",
+            description="P_D, the probability that a landmark predicted inside the sensor's "
+            "view (the sequence's landmark_field_of_view_deg and landmark_range_m) is sighted "
+            "in a scan: a hypothesis pays log(1 - P_D) for each one it leaves unsighted and "
+            "gains log P_D for each it pairs (Reid 1979, eq. 16). 'sequence': the sequence's "
+            "stated P_D by range (NoiseSpec.landmark_detection; UTIAS fits one at load), no "
+            "such term where it states none; a number: that P_D at every range; 'none': no term",
+        )
+    )  # 'none', not 'off': --set reads values as YAML, where off is false

@@ -299,9 +299,9 @@ def _detection_model(
     (m,)), the view being the sequence's horizontal field of view and range (a missing limit
     does not limit). ``setting``: a constant ``P_D``, ``"sequence"`` (the sequence's
     ``P_D`` by range, ``NoiseSpec.landmark_detection``; None where it states none) or
-    ``"off"`` (None)."""
+    ``"none"`` (None)."""
     noise = sequence.noise
-    if setting == "off" or (setting == "sequence" and noise.landmark_detection is None):
+    if setting == "none" or (setting == "sequence" and noise.landmark_detection is None):
         return None
     stated = noise.landmark_detection if setting == "sequence" else None
 
