@@ -54,6 +54,13 @@ Quirks handled (all counted in ``Sequence.metadata['counts']``):
   until the track returns; counted (``vicon_position_glitch_samples``) and timed
   (``excluded_truth_s``).
 
+Fitted at load against the robot's Vicon and the surveyed map, over the whole recording
+(a short run gets the same as the full one), besides the odometry calibration above: the
+odometry noise model (``odometry_noise``), the sightings' correlation in time
+(``sighting_correlation``, ``datasets.sighting_correlation``) and the camera's detection
+probability by range (``detection_probability``, ``datasets.detection_probability``); each
+is stated in ``Sequence.noise`` and in the metadata, and each can be switched off.
+
 Ground truth: Vicon poses (heading repaired), world and body velocity by central
 differences of the Vicon positions (derived, not measured), the surveyed landmark map
 (ids = barcodes) and the true barcode of every sighting (``scan_ids``).
