@@ -239,7 +239,7 @@ class MultiHypothesisEkfSlam:
         self.recorder.extra("hypotheses", [scan.t, len(kept)])
 
     def _committed(self, kept: list[_Hypothesis], t: float) -> list[_Hypothesis]:
-        """N-scan-back pruning (Blackman 2004, section IV.B; Cox and Hingorani 1996): the
+        """N-scan-back pruning (Blackman 2004; Cox and Hingorani 1996): the
         decisions made more than ``commit_after_s`` before ``t`` are those of the best
         hypothesis; every hypothesis that differs from it there is dropped. Without it the
         kept hypotheses fill up with variants of old, settled choices (which of two copies
