@@ -112,19 +112,23 @@ def fit_detection_probability(
     ids = np.array(sorted(landmarks), dtype=int)
     positions = np.array([landmarks[int(i)] for i in ids], dtype=float).reshape(-1, 2)
     truth_t, truth_xy, heading = reference
-    unwrapped = np.unwrap(heading)
-    in_view_count = np.zeros(len(edges) + 1)
-    sighted_count = np.zeros(len(edges) + 1)
-    for t, sighted in scans:
-        position = np.array([np.interp(t, truth_t, truth_xy[:, k]) for k in (0, 1)])
-        angle = float(np.interp(t, truth_t, unwrapped))
-        c, s = np.cos(angle), np.sin(angle)
-        body = (positions - position) @ np.array([[c, -s], [s, c]])  # R^T (l - p)
-        visible = in_view(body, field_of_view_deg, range_m)
-        bins = np.searchsorted(edges, np.linalg.norm(body[visible], axis=1), side="right")
-        hit = np.isin(ids[visible], np.asarray(sighted, dtype=int))
-        np.add.at(in_view_count, bins, 1)
-        np.add.at(sighted_count, bins, hit.astype(float))
+    times = np.array([float(t) for t, _ in scans])
+    position = np.column_stack([np.interp(times, truth_t, truth_xy[:, k]) for k in (0, 1)])
+    angle = np.interp(times, truth_t, np.unwrap(heading))
+    cos, sin = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    offset = positions[None, :, :] - position[:, None, :]  # (S, L, 2) world
+    body = np.stack(  # R^T (l - p)
+        [cos * offset[..., 0] + sin * offset[..., 1], -sin * offset[..., 0] + cos * offset[..., 1]],
+        axis=-1,
+    )
+    visible = in_view(body.reshape(-1, 2), field_of_view_deg, range_m).reshape(body.shape[:2])
+    column = {int(landmark): index for index, landmark in enumerate(ids)}
+    sighted = np.zeros(visible.shape, dtype=bool)
+    for row, (_, seen) in enumerate(scans):
+        sighted[row, [column[int(i)] for i in np.asarray(seen, int) if int(i) in column]] = True
+    bins = np.searchsorted(edges, np.linalg.norm(body, axis=-1)[visible], side="right")
+    in_view_count = np.bincount(bins, minlength=len(edges) + 1).astype(float)
+    sighted_count = np.bincount(bins, weights=sighted[visible], minlength=len(edges) + 1)
     probability = (sighted_count + 1.0) / (in_view_count + 2.0)
     return DetectionProbability(
         tuple(float(edge) for edge in edges),
