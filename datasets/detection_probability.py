@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from datasets.errors import InputError
+from datasets.rotations import rot2_batch
 
 
 @dataclass(frozen=True)
@@ -115,12 +116,8 @@ def fit_detection_probability(
     times = np.array([float(t) for t, _ in scans])
     position = np.column_stack([np.interp(times, truth_t, truth_xy[:, k]) for k in (0, 1)])
     angle = np.interp(times, truth_t, np.unwrap(heading))
-    cos, sin = np.cos(angle)[:, None], np.sin(angle)[:, None]
     offset = positions[None, :, :] - position[:, None, :]  # (S, L, 2) world
-    body = np.stack(  # R^T (l - p)
-        [cos * offset[..., 0] + sin * offset[..., 1], -sin * offset[..., 0] + cos * offset[..., 1]],
-        axis=-1,
-    )
+    body = np.einsum("sji,slj->sli", rot2_batch(angle), offset)  # R^T (l - p)
     visible = in_view(body.reshape(-1, 2), field_of_view_deg, range_m).reshape(body.shape[:2])
     column = {int(landmark): index for index, landmark in enumerate(ids)}
     sighted = np.zeros(visible.shape, dtype=bool)

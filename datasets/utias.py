@@ -435,9 +435,8 @@ def load_mrclam(
     swaps: list[tuple[int, int]] = []
     if config.fix_swapped_labels:
         swaps = detect_label_swaps(every_scan, *vicon, subject_of, surveyed)
-    correlation = _sighting_correlation(
-        config, every_scan, vicon, _swapped_survey(surveyed, subject_of, swaps), subject_of, name
-    )
+    location = _swapped_survey(surveyed, subject_of, swaps)
+    correlation = _sighting_correlation(config, every_scan, vicon, location, subject_of, name)
     bearings = np.abs(sightings.values[:, 3])
     # the camera's view: the widest bearing and longest range among the sightings
     field_of_view = float(np.rad2deg(2.0 * bearings.max())) if len(bearings) else None
@@ -446,7 +445,7 @@ def load_mrclam(
         config,
         every_scan,
         vicon,
-        _swapped_survey(surveyed, subject_of, swaps),
+        location,
         subject_of,
         (field_of_view, reach),
         name,
