@@ -30,6 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg.lapack import dpotrf, dtrtrs
 from scipy.optimize import linear_sum_assignment
 
 from filters.association.compatibility import chi2_gate
@@ -140,7 +141,7 @@ def ranked_hypotheses(
         rows = (local[:, None] * d + np.arange(d)).ravel()
         score = _joint_log_likelihood(
             measured[paired] - joint_predicted[local],
-            joint_cov[np.ix_(rows, rows)],
+            joint_cov[rows[:, None], rows],
             measured_cov[paired],
         )
         score += (k - paired.size) * float(new_landmark_log_density)
@@ -159,12 +160,14 @@ def _joint_log_likelihood(
     if p == 0:
         return 0.0
     covariance = np.array(predicted_cov, dtype=float)
-    for local in range(p):
-        block = slice(local * d, local * d + d)
-        covariance[block, block] += measured_cov[local]
+    diagonal = np.arange(p)
+    covariance.reshape(p, d, p, d)[diagonal, :, diagonal, :] += measured_cov
     innovation = innovations.ravel()
-    lower = np.linalg.cholesky(covariance)
-    whitened = np.linalg.solve(lower, innovation)
+    # LAPACK directly: these matrices are small and scipy's wrappers cost more than the work
+    lower, failed = dpotrf(covariance, lower=1, clean=1)
+    if failed:
+        raise np.linalg.LinAlgError("joint innovation covariance is not positive definite")
+    whitened, _ = dtrtrs(lower, innovation, lower=1)
     log_det = 2.0 * np.sum(np.log(np.diag(lower)))
     mahalanobis = float(whitened @ whitened)
     return -0.5 * (mahalanobis + log_det + innovation.size * np.log(2.0 * np.pi))
@@ -173,13 +176,21 @@ def _joint_log_likelihood(
 def _murty(cost: np.ndarray, count: int) -> list[np.ndarray]:
     """Up to ``count`` assignments of every row to a distinct column, by increasing total
     ``cost`` (inf: forbidden) (Murty 1968): each found assignment's remaining space is
-    partitioned into subproblems that fix its first rows and forbid its next pair."""
+    partitioned into subproblems that fix its first rows and forbid its next pair.
+
+    A subproblem is the mask of the pairs it allows; every solve replaces the pairs it does
+    not allow by one ``big`` cost, larger than any difference of feasible totals, so a
+    solution using one is infeasible."""
     rows = cost.shape[0]
-    first = _solve(cost)
+    allowed = np.isfinite(cost)
+    big = 1.0 + 2.0 * float(np.abs(cost[allowed]).sum())
+    first = _solve(cost, allowed, big)
     if first is None:
         return []
     counter = 0
-    queue: list[tuple[float, int, np.ndarray, np.ndarray]] = [(first[0], counter, first[1], cost)]
+    queue: list[tuple[float, int, np.ndarray, np.ndarray]] = [
+        (first[0], counter, first[1], allowed)
+    ]
     found: list[np.ndarray] = []
     while queue and len(found) < count:
         _, _, columns, constrained = heapq.heappop(queue)
@@ -187,27 +198,24 @@ def _murty(cost: np.ndarray, count: int) -> list[np.ndarray]:
         fixed = constrained.copy()
         for row in range(rows):
             column = columns[row]
-            if np.count_nonzero(np.isfinite(fixed[row])) > 1:
+            if np.count_nonzero(fixed[row]) > 1:
                 sub = fixed.copy()
-                sub[row, column] = np.inf
-                solution = _solve(sub)
+                sub[row, column] = False
+                solution = _solve(cost, sub, big)
                 if solution is not None:
                     counter += 1
                     heapq.heappush(queue, (solution[0], counter, solution[1], sub))
             # the following subproblems keep this row's pair
-            keep = fixed[row, column]
-            fixed[row, :] = np.inf
-            fixed[:, column] = np.inf
-            fixed[row, column] = keep
+            fixed[row, :] = False
+            fixed[:, column] = False
+            fixed[row, column] = True
     return found
 
 
-def _solve(cost: np.ndarray) -> tuple[float, np.ndarray] | None:
-    """The least-cost assignment of every row (total, columns), or None if none is finite."""
-    finite = np.where(np.isfinite(cost), cost, 0.0)
-    big = 1.0 + 2.0 * np.abs(finite).sum()
-    rows, columns = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
-    total = cost[rows, columns]
-    if not np.all(np.isfinite(total)):
+def _solve(cost: np.ndarray, allowed: np.ndarray, big: float) -> tuple[float, np.ndarray] | None:
+    """The least-cost assignment of every row to an ``allowed`` pair (total, columns), or
+    None if there is none (``_murty`` says what ``big`` is)."""
+    rows, columns = linear_sum_assignment(np.where(allowed, cost, big))
+    if not allowed[rows, columns].all():
         return None
-    return float(total.sum()), columns
+    return float(cost[rows, columns].sum()), columns
