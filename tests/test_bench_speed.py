@@ -41,3 +41,7 @@ def test_ratios_pair_figures_of_the_same_run() -> None:
     )
     assert rows["filterpy / aghili scan update"] == 10.0
     assert rows["filterpy / ekf-slam scan update"] is None  # ekf-slam not measured
+    per_hypothesis = ratio_rows(
+        {"ekf_slam_mht_hypothesis_scan_ms_loop": 3.0, "ekf_slam_scan_ms_loop": 2.0}
+    )
+    assert per_hypothesis == [("ekf-slam-mht per hypothesis / ekf-slam, per scan", 1.5, "<= 2")]

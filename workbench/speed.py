@@ -1,6 +1,7 @@
 """The named speed figures of ``workbench bench-speed``, measured in one process on
 synthetic scenes (no data files): the filters' scan updates and propagation, the
-sensor-based step, the smoothers' keyframe and finish, and filterpy's dense EKF update on
+sensor-based step, the smoothers' keyframe and finish, ekf-slam-mht's cost per hypothesis
+against ekf-slam's per scan (a simulated loop without ids), and filterpy's dense EKF update on
 the same matrices as an external anchor when filterpy is installed (it is not a
 dependency).
 
@@ -251,6 +252,28 @@ def sensor_based_step_ms(landmarks: int, steps: int = 40) -> float:
     return 1e3 * seconds
 
 
+def loop_without_ids_scan_ms(estimator: str) -> float:
+    """``estimator`` (a planar registered name) on ``sim:guerreiro-loop`` without ids (5 s,
+    seed 0, 51 scans, the corners of its door niches ambiguous): wall time of the whole run
+    per scan [ms]; for ``ekf-slam-mht`` divided further by the hypotheses kept on average
+    (the ``hypotheses`` extra), i.e. the cost of one hypothesis over one scan."""
+    from workbench.registry import load_dataset
+    from workbench.runner import RunRequest, execute
+
+    name = "sim:guerreiro-loop"
+    warm_up = load_dataset(name, 0, {"duration_s": "0.5", "ids": "false"})
+    execute(RunRequest(estimator, name), sequence=warm_up)  # imports, first-call costs
+    sequence = load_dataset(name, 0, {"duration_s": "5", "ids": "false"})
+    start = time.perf_counter()
+    estimate = execute(RunRequest(estimator, name), sequence=sequence).estimate
+    seconds = time.perf_counter() - start
+    per_scan = seconds / max(1, len(estimate.diagnostics.landmark_count_t))
+    kept = estimate.diagnostics.extras.get("hypotheses")
+    if kept is not None:
+        per_scan /= float(np.mean(np.asarray(kept)[:, 1]))
+    return 1e3 * per_scan
+
+
 def figures(include: set[str] | None = None) -> dict[str, float | None]:
     """Every named figure (``include``: only these keys), in the issue's vocabulary."""
 
@@ -273,6 +296,8 @@ def figures(include: set[str] | None = None) -> dict[str, float | None]:
         "isam2_keyframe_ms_n200": smoother("isam2_keyframe_ms", 200, "CHOLESKY"),
         "isam2_keyframe_ms_n200_qr": smoother("isam2_keyframe_ms", 200, "QR"),
         "smoother_finish_s_n200": smoother("smoother_finish_s", 200),
+        "ekf_slam_scan_ms_loop": lambda: loop_without_ids_scan_ms("ekf-slam"),
+        "ekf_slam_mht_hypothesis_scan_ms_loop": lambda: loop_without_ids_scan_ms("ekf-slam-mht"),
     }
     found: dict[str, float | None] = {}
     for key, measure in measurements.items():
