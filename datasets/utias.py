@@ -252,6 +252,7 @@ def read_table(path: Path, columns: tuple[str, ...]) -> _Table:
     except ValueError:
         values = None
     if values is None or not np.isfinite(values).all():
+        checked = []
         for fields, number in zip(rows, lines):
             try:
                 row = [float(field) for field in fields]
@@ -259,6 +260,8 @@ def read_table(path: Path, columns: tuple[str, ...]) -> _Table:
                 raise InputError(f"{path}:{number}: not a number in '{' '.join(fields)}'") from None
             if not np.all(np.isfinite(row)):
                 raise InputError(f"{path}:{number}: non-finite value in '{' '.join(fields)}'")
+            checked.append(row)
+        values = np.array(checked)  # what Python reads and numpy did not (e.g. "1_0")
     decimals = [len(fields[0].lower().split("e")[0].partition(".")[2]) for fields in rows]
     return _Table(values, np.array(lines), path, np.array(decimals))
 
