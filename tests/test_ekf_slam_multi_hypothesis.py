@@ -156,7 +156,7 @@ def test_composed_odometry_predicts_like_every_sample() -> None:
 def test_utias_robot1_without_ids_keeps_the_right_association(utias_folder: Path) -> None:
     # 180 s of robot 1, ids withheld (scored with them): ekf-slam's single-scan decisions
     # pair sightings of unmapped landmarks with mapped neighbours (P 0.922 when written);
-    # the hypotheses keep them apart until the data decide (P 1.000, R 0.997; 17 s here)
+    # the hypotheses keep them apart until the data decide (P 0.997, R 0.997; 16 s here)
     sequence = load(f"{utias_folder}#robot1", 0, {"duration_s": "180", "ids": "false"})
     single = compute_metrics(run_estimator(EkfSlam, EkfSlamConfig(), sequence), sequence)
     estimate = run_estimator(MultiHypothesisEkfSlam, MultiHypothesisEkfSlamConfig(), sequence)
