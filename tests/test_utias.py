@@ -20,6 +20,7 @@ from datasets.utias import (
     grid_times,
     load,
     load_mrclam,
+    read_table,
     repair_heading_glitches,
 )
 
@@ -322,3 +323,21 @@ def test_detection_probability_is_fitted_by_range_against_vicon(robot1) -> None:
         load(f"{UTIAS}#robot1", 0, {"detection_probability": "none"}).noise.landmark_detection
         is None
     )
+
+
+def test_read_table_converts_once_and_still_names_the_bad_line(tmp_path: Path) -> None:
+    # the whole table goes through one numpy conversion; a value it cannot take is looked
+    # up row by row, so a bad row is still named by its line, and what Python's float()
+    # reads (numpy does not: "2_0") is read as before
+    table = tmp_path / "Robot1_Odometry.dat"
+    table.write_text("# time v omega\n1.25 0.5 2_0\n\n1.5 0.5 -0.1  # comment\n")
+    read = read_table(table, ("time", "v", "omega"))
+    np.testing.assert_array_equal(read.values, [[1.25, 0.5, 20.0], [1.5, 0.5, -0.1]])
+    np.testing.assert_array_equal(read.lines, [2, 4])
+    np.testing.assert_array_equal(read.first_decimals, [2, 1])
+    table.write_text("1.0 0.5 0.1\n2.0 0.5 nan\n")
+    with pytest.raises(InputError, match=r"Robot1_Odometry.dat:2: non-finite value"):
+        read_table(table, ("time", "v", "omega"))
+    table.write_text("1.0 0.5 0.1\n2.0 fast 0.1\n")
+    with pytest.raises(InputError, match=r"Robot1_Odometry.dat:2: not a number"):
+        read_table(table, ("time", "v", "omega"))
