@@ -50,8 +50,8 @@ RATIOS = (
     ("iSAM2 keyframe QR / Cholesky", "isam2_keyframe_ms_n200_qr", "isam2_keyframe_ms_n200", ">= 8"),
     # every hypothesis is a full ekf-slam (between scans all but the leader compose the
     # odometry and predict once) plus the ranking of its next scan's interpretations
-    # (Murty's k-best, joint rescoring), which costs about as much as the update: 1.4-1.8
-    # measured on the 2-core machine (2.6-2.7 before Murty's subproblems became masks)
+    # (Murty's k-best, joint rescoring): 1.33-1.36 measured on the 2-core machine (2.6-2.7,
+    # with a one-run anchor, before Murty's subproblems became masks)
     (
         "ekf-slam-mht per hypothesis / ekf-slam, per scan",
         "ekf_slam_mht_hypothesis_scan_ms_loop",
