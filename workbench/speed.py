@@ -265,17 +265,17 @@ def loop_without_ids_scan_ms(estimator: str, repetitions: int = 1) -> float:
     warm_up = load_dataset(name, 0, {"duration_s": "0.5", "ids": "false"})
     execute(RunRequest(estimator, name), sequence=warm_up)  # imports, first-call costs
     sequence = load_dataset(name, 0, {"duration_s": "5", "ids": "false"})
-    samples = []
-    for _ in range(repetitions):
-        start = time.perf_counter()
-        estimate = execute(RunRequest(estimator, name), sequence=sequence).estimate
-        seconds = time.perf_counter() - start
-        per_scan = seconds / max(1, len(estimate.diagnostics.landmark_count_t))
-        kept = estimate.diagnostics.extras.get("hypotheses")
-        if kept is not None:
-            per_scan /= float(np.mean(np.asarray(kept)[:, 1]))
-        samples.append(per_scan)
-    return 1e3 * float(np.median(samples))
+    estimates = []  # the runs are deterministic: the same scans and hypotheses every time
+    seconds = median_seconds(
+        lambda: estimates.append(execute(RunRequest(estimator, name), sequence=sequence).estimate),
+        repetitions,
+    )
+    diagnostics = estimates[-1].diagnostics
+    per_scan = seconds / max(1, len(diagnostics.landmark_count_t))
+    kept = diagnostics.extras.get("hypotheses")
+    if kept is not None:
+        per_scan /= float(np.mean(np.asarray(kept)[:, 1]))
+    return 1e3 * per_scan
 
 
 def figures(include: set[str] | None = None) -> dict[str, float | None]:
