@@ -22,6 +22,7 @@ from datasets.errors import InputError
 from datasets.options import parse_assignments
 from workbench.completion import dataset_names, estimator_names
 from workbench.estimator_settings import settings_by_estimator
+from workbench.owned_folders import COLLECTION, RUN, check_writable, claim_collection, exclusive
 from workbench.plot_formats import parse_plot_formats
 from workbench.registry import DATASETS, ESTIMATORS
 
@@ -207,7 +208,10 @@ def simulate_command(
         from datasets.simulation.folder_format import write_sequence_folder
         from datasets.simulation.scenarios import load_scenario
 
-        path = write_sequence_folder(load_scenario(scenario, seed, options), out)
+        with exclusive(out):
+            check_writable(out, COLLECTION)
+            sequence = load_scenario(scenario, seed, options)
+            path = write_sequence_folder(sequence, claim_collection(out))
     typer.echo(f"wrote {path}")
 
 
@@ -250,17 +254,19 @@ def run_command(
         overrides=tuple(settings_by_estimator(set_ or [], [estimator])[estimator].items()),
         data_options=tuple(parse_assignments(data or [], "--data").items()),
     )
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("t={task.completed:.1f} s"),
-        TimeElapsedColumn(),
-        transient=True,
-        disable=not sys.stderr.isatty(),
-    ) as progress:
-        task = progress.add_task(f"{estimator} on {dataset}", total=None)
-        result = execute(request, on_step=lambda t: progress.update(task, completed=t))
-    metrics = write_run_folder(result, out, plot_formats if plots else ())
+    with exclusive(out):
+        check_writable(out, RUN)  # before the run, not after it
+        with Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TextColumn("t={task.completed:.1f} s"),
+            TimeElapsedColumn(),
+            transient=True,
+            disable=not sys.stderr.isatty(),
+        ) as progress:
+            task = progress.add_task(f"{estimator} on {dataset}", total=None)
+            result = execute(request, on_step=lambda t: progress.update(task, completed=t))
+        metrics = write_run_folder(result, out, plot_formats if plots else ())
     shown = {
         key: value
         for key, value in metrics.items()
@@ -307,7 +313,9 @@ def rerun_command(
             (str(k), str(v)) for k, v in (recorded.get("data_options") or {}).items()
         ),
     )
-    metrics = write_run_folder(execute(request), out, ("png",) if plots else ())
+    with exclusive(out):
+        check_writable(out, RUN)
+        metrics = write_run_folder(execute(request), out, ("png",) if plots else ())
     for line in metrics["warnings"]:
         typer.echo(f"warning: {line}", err=True)
     typer.echo(f"run folder: {out}")

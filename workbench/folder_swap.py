@@ -89,6 +89,7 @@ def replaced_as_a_whole(folder: Path) -> Iterator[Path]:
     takes ``folder``'s place (module docstring), on an error it is removed and ``folder``
     is left as it was."""
     from datasets.errors import InputError
+    from workbench.owned_folders import RUN, check_writable, exclusive, mark
 
     folder = Path(folder)
     if folder.name in ("", ".", ".."):
@@ -100,9 +101,18 @@ def replaced_as_a_whole(folder: Path) -> Iterator[Path]:
         folder.parent.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise InputError(f"--out {folder}: cannot create its parent ({error.strerror})") from None
-    recover(folder)
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"--out {folder}: exists and is not a folder")
+    with exclusive(folder):
+        recover(folder)
+        check_writable(folder, RUN)  # never replaces a folder the workbench did not write
+        with _staged(folder) as staging:
+            mark(staging, RUN)
+            yield staging
+
+
+@contextmanager
+def _staged(folder: Path) -> Iterator[Path]:
+    from datasets.errors import InputError
+
     staging = _sibling(folder, _PARTIAL)
     shutil.rmtree(staging, ignore_errors=True)
     try:

@@ -30,7 +30,9 @@ DATA_FOLDER_PLACEHOLDER = "{data}"
 
 def slug(text: str) -> str:
     """A file-name-safe form of ``text``: ``'sim:circle (ids=false)'`` -> ``'sim-circle-ids-false'``."""
-    return re.sub(r"[^A-Za-z0-9._]+", "-", text).strip("-") or "unnamed"
+    # leading dots stripped: a label '..' or '.hidden' must not name a parent or hidden folder
+    name = re.sub(r"[^A-Za-z0-9._]+", "-", text)
+    return re.sub(r"^[.-]+", "", name).rstrip("-") or "unnamed"
 
 
 def format_options(options: Options) -> str:

@@ -23,6 +23,7 @@ import csv
 import io
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated
 
@@ -227,7 +228,43 @@ def bag_command(
     settings_overrides: list[str] | None = None,
     plot_formats: tuple[str, ...] = ("png",),
 ) -> list[dict]:
-    """The whole command (module docstring); returns the table rows."""
+    """The whole command (module docstring); returns the table rows. ``out`` must be new,
+    empty or an earlier output of the workbench's (``workbench.owned_folders``)."""
+    from workbench.owned_folders import COLLECTION, check_writable, claim_collection, exclusive
+
+    out = Path(out)
+    with exclusive(out):
+        check_writable(out, COLLECTION)  # before the bag is read, not after
+        return _bag_command(
+            path,
+            out,
+            lidar_topic,
+            imu_topic,
+            ground_truth_topic,
+            estimators,
+            data,
+            plots,
+            quiet,
+            settings_overrides,
+            plot_formats,
+            claim=lambda: claim_collection(out),
+        )
+
+
+def _bag_command(
+    path: Path,
+    out: Path,
+    lidar_topic: str | None,
+    imu_topic: str | None,
+    ground_truth_topic: str | None,
+    estimators: list[str] | None,
+    data: list[str],
+    plots: bool,
+    quiet: bool,
+    settings_overrides: list[str] | None,
+    plot_formats: tuple[str, ...],
+    claim: Callable[[], Path],
+) -> list[dict]:
     from datasets.bags.reader import open_bag
     from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
     from datasets.trajectory_io import write_atomic, write_tum
@@ -260,6 +297,7 @@ def bag_command(
             f"{path}: no usable point clouds on {sequence.metadata['topics']['lidar']}"
             + (f" ({'; '.join(source.report.lines())})" if source.report.skipped else "")
         )
+    claim()
     front_dir = out / "frontend"
     front_dir.mkdir(parents=True, exist_ok=True)
     trajectory = source.front_end.trajectory()

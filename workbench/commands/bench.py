@@ -23,7 +23,7 @@ from workbench.estimator_settings import settings_by_estimator
 from workbench.plot_formats import parse_plot_formats
 from workbench.reporting import Report
 from workbench.suite_files import DEFAULT_SUITE, builtin_suites, get_suite, suite_path
-from workbench.suites import restrict, with_settings
+from workbench.suites import Suite, restrict, with_settings
 
 
 def bench(
@@ -45,7 +45,43 @@ def bench(
     ``report_only``: run nothing, report the runs on disk (no dataset is probed).
     ``datasets`` / ``estimators``: only these of the suite (names or labels).
     ``settings``: ``--set`` options, ``ESTIMATOR.key=value`` (``key=value`` when the suite
-    runs one estimator)."""
+    runs one estimator). ``out`` must be new, empty or an earlier output of the
+    workbench's (``workbench.owned_folders``); it is locked while the suite runs."""
+    from workbench.owned_folders import claim_collection, exclusive
+
+    suite = restrict(get_suite(suite_name), datasets, estimators)
+    names = list(dict.fromkeys(spec.name for spec in suite.estimators))
+    suite = with_settings(suite, settings_by_estimator(settings or [], names))
+    runs = suite.default_runs if runs is None else runs
+    out = Path(out).resolve()
+    with exclusive(out):
+        claim_collection(out)
+        return _bench(
+            suite,
+            runs,
+            out,
+            scheduler,
+            workers,
+            plots,
+            run_plots,
+            show_progress,
+            report_only,
+            plot_formats,
+        )
+
+
+def _bench(
+    suite: Suite,
+    runs: int,
+    out: Path,
+    scheduler: str | None,
+    workers: int | None,
+    plots: bool,
+    run_plots: bool,
+    show_progress: bool | None,
+    report_only: bool,
+    plot_formats: tuple[str, ...],
+) -> BenchOutcome:
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -62,11 +98,6 @@ def bench(
     from workbench.sweep.backends import make_backend
     from workbench.sweep.plan import pairs_on_disk, plan_sweep
 
-    suite = restrict(get_suite(suite_name), datasets, estimators)
-    names = list(dict.fromkeys(spec.name for spec in suite.estimators))
-    suite = with_settings(suite, settings_by_estimator(settings or [], names))
-    runs = suite.default_runs if runs is None else runs
-    out = Path(out).resolve()
     formats = plot_formats if plots else ()
     if report_only:
         # what is on disk, in the suite's order with its left-out pairs, without probing

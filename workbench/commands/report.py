@@ -33,10 +33,12 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Compare any run folders in one table (Markdown, LaTeX, CSV) and figures."""
         from workbench.commands.bench import show_report
+        from workbench.owned_folders import claim_collection, exclusive
         from workbench.reporting import write_report
         from workbench.results.runs import load_runs
 
         formats = parse_plot_formats(plot_format) if plots else ()
         records = load_runs(paths)
-        report = write_report(records, out, plot_formats=formats, seed=seed)
+        with exclusive(out):
+            report = write_report(records, claim_collection(out), plot_formats=formats, seed=seed)
         show_report(report, f"{len(records)} run(s)")
