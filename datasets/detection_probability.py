@@ -87,6 +87,22 @@ def in_view(
     return visible
 
 
+@dataclass(frozen=True)
+class DetectionPart:
+    """One recording's evidence for ``fit_detection_probability_pooled``.
+
+    Attributes:
+        scans: (time [s], the true ids sighted) of every scan with a sighting.
+        reference: (t (N,), positions (N, 2), headings (N,) [rad]) of the planar reference
+            trajectory, interpolated to each scan's time.
+        landmarks: true id -> world position (2,) [m].
+    """
+
+    scans: list[tuple[float, np.ndarray]]
+    reference: tuple[np.ndarray, np.ndarray, np.ndarray]
+    landmarks: dict[int, np.ndarray]
+
+
 def fit_detection_probability(
     scans: list[tuple[float, np.ndarray]],
     reference: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -96,36 +112,39 @@ def fit_detection_probability(
     source: str,
     bin_width_m: float = 1.0,
 ) -> DetectionProbability:
-    """Fit ``P_D`` by range (module docstring).
+    """Fit ``P_D`` by range (module docstring) from one recording (``DetectionPart`` says
+    what the arguments hold); ``field_of_view_deg``, ``range_m``: the sensor's view
+    (``NoiseSpec``); ``bin_width_m``: width of the range bins [m], the last bin ends at
+    ``range_m``."""
+    return fit_detection_probability_pooled(
+        [DetectionPart(scans, reference, landmarks)],
+        field_of_view_deg,
+        range_m,
+        source,
+        bin_width_m,
+    )
 
-    Args:
-        scans: (time [s], the true ids sighted) of every scan with a sighting.
-        reference: (t (N,), positions (N, 2), headings (N,) [rad]) of the planar reference
-            trajectory, interpolated to each scan's time.
-        landmarks: true id -> world position (2,) [m].
-        field_of_view_deg, range_m: the sensor's view (``NoiseSpec``).
-        bin_width_m: width of the range bins [m]; the last bin ends at ``range_m``.
-    """
-    if not scans or not landmarks:
+
+def fit_detection_probability_pooled(
+    parts: list[DetectionPart],
+    field_of_view_deg: float | None,
+    range_m: float | None,
+    source: str,
+    bin_width_m: float = 1.0,
+) -> DetectionProbability:
+    """Fit ``P_D`` by range over several recordings of the same sensor: the landmarks in
+    view and those sighted are counted per range bin over every part, then the ratio."""
+    usable = [part for part in parts if part.scans and part.landmarks]
+    if not usable:
         raise InputError(f"detection probability: no scans or no landmarks to fit from ({source})")
     reach = range_m if range_m is not None else 10.0 * bin_width_m
     edges = np.arange(bin_width_m, reach, bin_width_m)
-    ids = np.array(sorted(landmarks), dtype=int)
-    positions = np.array([landmarks[int(i)] for i in ids], dtype=float).reshape(-1, 2)
-    truth_t, truth_xy, heading = reference
-    times = np.array([float(t) for t, _ in scans])
-    position = np.column_stack([np.interp(times, truth_t, truth_xy[:, k]) for k in (0, 1)])
-    angle = np.interp(times, truth_t, np.unwrap(heading))
-    offset = positions[None, :, :] - position[:, None, :]  # (S, L, 2) world
-    body = np.einsum("sji,slj->sli", rot2_batch(angle), offset)  # R^T (l - p)
-    visible = in_view(body.reshape(-1, 2), field_of_view_deg, range_m).reshape(body.shape[:2])
-    column = {int(landmark): index for index, landmark in enumerate(ids)}
-    sighted = np.zeros(visible.shape, dtype=bool)
-    for row, (_, seen) in enumerate(scans):
-        sighted[row, [column[int(i)] for i in np.asarray(seen, int) if int(i) in column]] = True
-    bins = np.searchsorted(edges, np.linalg.norm(body, axis=-1)[visible], side="right")
-    in_view_count = np.bincount(bins, minlength=len(edges) + 1).astype(float)
-    sighted_count = np.bincount(bins, weights=sighted[visible], minlength=len(edges) + 1)
+    in_view_count = np.zeros(len(edges) + 1)
+    sighted_count = np.zeros(len(edges) + 1)
+    for part in usable:
+        seen, sighted = _counts(part, edges, field_of_view_deg, range_m)
+        in_view_count += seen
+        sighted_count += sighted
     probability = (sighted_count + 1.0) / (in_view_count + 2.0)
     return DetectionProbability(
         tuple(float(edge) for edge in edges),
@@ -133,3 +152,29 @@ def fit_detection_probability(
         source,
         tuple(int(n) for n in in_view_count),
     )
+
+
+def _counts(
+    part: DetectionPart,
+    edges: np.ndarray,
+    field_of_view_deg: float | None,
+    range_m: float | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(landmarks in view, of them sighted) per range bin over one part's scans."""
+    ids = np.array(sorted(part.landmarks), dtype=int)
+    positions = np.array([part.landmarks[int(i)] for i in ids], dtype=float).reshape(-1, 2)
+    truth_t, truth_xy, heading = part.reference
+    times = np.array([float(t) for t, _ in part.scans])
+    position = np.column_stack([np.interp(times, truth_t, truth_xy[:, k]) for k in (0, 1)])
+    angle = np.interp(times, truth_t, np.unwrap(heading))
+    offset = positions[None, :, :] - position[:, None, :]  # (S, L, 2) world
+    body = np.einsum("sji,slj->sli", rot2_batch(angle), offset)  # R^T (l - p)
+    visible = in_view(body.reshape(-1, 2), field_of_view_deg, range_m).reshape(body.shape[:2])
+    column = {int(landmark): index for index, landmark in enumerate(ids)}
+    sighted = np.zeros(visible.shape, dtype=bool)
+    for row, (_, seen) in enumerate(part.scans):
+        sighted[row, [column[int(i)] for i in np.asarray(seen, int) if int(i) in column]] = True
+    bins = np.searchsorted(edges, np.linalg.norm(body, axis=-1)[visible], side="right")
+    in_view_count = np.bincount(bins, minlength=len(edges) + 1).astype(float)
+    sighted_count = np.bincount(bins, weights=sighted[visible], minlength=len(edges) + 1)
+    return in_view_count, sighted_count

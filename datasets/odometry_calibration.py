@@ -358,7 +358,7 @@ class ScaleFit:
 
 
 SCALE_NAMES = ("speed", "turn", "coupling")
-_SCALE_BOUNDS = {"speed": (0.5, 2.0), "turn": (0.5, 2.0), "coupling": (0.0, 3.0)}
+SCALE_BOUNDS = {"speed": (0.5, 2.0), "turn": (0.5, 2.0), "coupling": (0.0, 3.0)}
 _SCALE_NEUTRAL = {"speed": 1.0, "turn": 1.0, "coupling": 0.0}
 
 
@@ -366,6 +366,24 @@ def speed_factors(turn_rates: np.ndarray, speed: float, coupling: float) -> np.n
     """Per-sample factors of the forward speed, ``speed * max(0, 1 - coupling * |omega|)``
     for commanded turn rates ``omega`` [rad/s] (``ScaleFit``)."""
     return speed * np.clip(1.0 - coupling * np.abs(np.asarray(turn_rates, float)), 0.0, None)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One recording's odometry and its reference, for a fit pooled over recordings.
+
+    Attributes:
+        increments: the odometry.
+        reference_t (m,) [s], reference_positions (m, 2) [m], reference_headings (m,) [rad]:
+            the reference's world poses.
+        tolerance_s: how close an increment end and a reference time must be to pair [s].
+    """
+
+    increments: Increments
+    reference_t: np.ndarray
+    reference_positions: np.ndarray
+    reference_headings: np.ndarray
+    tolerance_s: float = 1e-6
 
 
 def fit_scales(
@@ -377,11 +395,82 @@ def fit_scales(
     tolerance_s: float = 1e-6,
     fixed: dict[str, float] | None = None,
 ) -> ScaleFit:
+    """``fit_scales_pooled`` of one recording (its docstring says what is fitted)."""
+    segment = Segment(increments, reference_t, reference_positions, reference_headings, tolerance_s)
+    return fit_scales_pooled([segment], window_s, fixed)
+
+
+@dataclass(frozen=True)
+class _ScaleWindows:
+    """One segment's windows as ``fit_scales_pooled`` evaluates them."""
+
+    values: np.ndarray  # (n, 3) increments of the windows' steps
+    rates: np.ndarray  # (n,) commanded turn rate of each step [rad/s]
+    offsets: np.ndarray  # (W,) where each window's steps begin in ``values``
+    lengths: np.ndarray  # (W,) steps per window
+    relative_position: np.ndarray  # (W, 2) reference motion in the window's start frame [m]
+    relative_heading: np.ndarray  # (W,) [rad]
+
+    @staticmethod
+    def of(segment: Segment, window_s: float) -> _ScaleWindows:
+        increments, headings = segment.increments, segment.reference_headings
+        boundaries = window_bounds(increments, segment.reference_t, window_s, segment.tolerance_s)
+        firsts = np.array([first for first, _ in boundaries], dtype=int)
+        references = np.array([ref for _, ref in boundaries], dtype=int)
+        usable = firsts[1:] > firsts[:-1]  # windows with at least one step
+        starts, stops = firsts[:-1][usable], firsts[1:][usable]
+        ref_a, ref_b = references[:-1][usable], references[1:][usable]
+        if len(starts) == 0:
+            empty = np.zeros(0, dtype=int)
+            return _ScaleWindows(
+                np.zeros((0, 3)), np.zeros(0), empty, empty, np.zeros((0, 2)), np.zeros(0)
+            )
+        steps = slice(int(starts[0]), int(stops[-1]))
+        values = increments.values[steps]
+        rates = values[:, 2] / np.maximum(np.abs(increments.dt[steps]), 1e-12)
+        start_rotation = rot2_batch(headings[ref_a])
+        positions = segment.reference_positions
+        relative_position = np.einsum(
+            "wji,wj->wi", start_rotation, positions[ref_b] - positions[ref_a]
+        )
+        relative_heading = wrap_angle(headings[ref_b] - headings[ref_a])
+        return _ScaleWindows(
+            values, rates, starts - starts[0], stops - starts, relative_position, relative_heading
+        )
+
+    def residuals(self, scales: dict[str, float]) -> np.ndarray:
+        """(W, 3) reference minus calibrated odometry over each window: position [m] in the
+        window's start frame, heading [rad]."""
+        values, offsets = self.values, self.offsets
+        turns = scales["turn"] * values[:, 2]
+        total = np.cumsum(turns)
+        # heading before each step, from its window's start frame (exactly 0 at the first)
+        before = total - turns - np.repeat((total - turns)[offsets], self.lengths)
+        cos, sin = np.cos(before), np.sin(before)
+        forward = speed_factors(self.rates, scales["speed"], scales["coupling"])
+        moved = forward[:, None] * np.column_stack(
+            [cos * values[:, 0] - sin * values[:, 1], sin * values[:, 0] + cos * values[:, 1]]
+        )
+        end_position = np.add.reduceat(moved, offsets, axis=0)
+        end_heading = np.add.reduceat(turns, offsets)
+        return np.column_stack(
+            [
+                self.relative_position - end_position,
+                wrap_angle(self.relative_heading - end_heading),
+            ]
+        )
+
+
+def fit_scales_pooled(
+    segments: list[Segment], window_s: float, fixed: dict[str, float] | None = None
+) -> ScaleFit:
     """Calibration of commanded-velocity odometry: a speed factor ``k_s``, a turn factor
     ``k_w`` and a speed-turn coupling ``c`` [s/rad], so that the increments
     ``(f dx, f dy, k_w dtheta)`` with ``f = k_s max(0, 1 - c |dtheta / dt|)`` composed over
-    the windows of ``window_bounds`` best match the reference's relative poses. ``fixed``
-    holds the factors given (by name, ``SCALE_NAMES``); the others are fitted.
+    the windows of ``window_bounds`` best match the reference's relative poses, over the
+    windows of every segment (recordings of the same kind of robot: the factors are one
+    robot model's, not one recording's). ``fixed`` holds the factors given (by name,
+    ``SCALE_NAMES``); the others are fitted.
 
     Systematic errors that the noise model (variances linear in time, distance and turn)
     cannot hold, because they keep their sign for minutes: on UTIAS dataset 1 the commanded
@@ -402,45 +491,20 @@ def fit_scales(
     if unknown:
         raise ValueError(f"fit_scales: unknown factors {sorted(unknown)}")
     free = [name for name in SCALE_NAMES if name not in fixed]
-    boundaries = window_bounds(increments, reference_t, window_s, tolerance_s)
-    firsts = np.array([first for first, _ in boundaries])
-    references = np.array([ref for _, ref in boundaries])
-    usable = firsts[1:] > firsts[:-1]  # windows with at least one step
-    starts, stops = firsts[:-1][usable], firsts[1:][usable]
-    ref_a, ref_b = references[:-1][usable], references[1:][usable]
-    if len(starts) < 10:
+    parts = [_ScaleWindows.of(segment, window_s) for segment in segments]
+    parts = [part for part in parts if len(part.offsets)]
+    count = sum(len(part.offsets) for part in parts)
+    if count < 10:
         raise InputError(
-            f"only {len(starts)} windows of {window_s:g} s where the odometry and the "
+            f"only {count} windows of {window_s:g} s where the odometry and the "
             "reference overlap (need at least 10)"
         )
-    steps = slice(int(starts[0]), int(stops[-1]))
-    values = increments.values[steps]
-    rates = values[:, 2] / np.maximum(np.abs(increments.dt[steps]), 1e-12)
-    start_rotation = rot2_batch(reference_headings[ref_a])
-    relative_position = np.einsum(
-        "wji,wj->wi", start_rotation, reference_positions[ref_b] - reference_positions[ref_a]
-    )
-    relative_heading = wrap_angle(reference_headings[ref_b] - reference_headings[ref_a])
-    offsets = starts - starts[0]  # where each window's steps begin in ``values``
 
     def factors(vector: np.ndarray) -> dict[str, float]:
         return {**fixed, **dict(zip(free, map(float, vector)))}
 
     def residuals(scales: dict[str, float]) -> np.ndarray:
-        turns = scales["turn"] * values[:, 2]
-        total = np.cumsum(turns)
-        # heading before each step, from its window's start frame (exactly 0 at the first)
-        before = total - turns - np.repeat((total - turns)[offsets], stops - starts)
-        cos, sin = np.cos(before), np.sin(before)
-        forward = speed_factors(rates, scales["speed"], scales["coupling"])
-        moved = forward[:, None] * np.column_stack(
-            [cos * values[:, 0] - sin * values[:, 1], sin * values[:, 0] + cos * values[:, 1]]
-        )
-        end_position = np.add.reduceat(moved, offsets, axis=0)
-        end_heading = np.add.reduceat(turns, offsets)
-        return np.column_stack(
-            [relative_position - end_position, wrap_angle(relative_heading - end_heading)]
-        )
+        return np.vstack([part.residuals(scales) for part in parts])
 
     raw = residuals(dict(_SCALE_NEUTRAL))
     spread = np.array([np.sqrt(np.mean(raw[:, :2] ** 2))] * 2 + [np.sqrt(np.mean(raw[:, 2] ** 2))])
@@ -451,7 +515,7 @@ def fit_scales(
             lambda vector: (residuals(factors(vector)) / spread).ravel(),
             np.array([_SCALE_NEUTRAL[name] for name in free]),
             loss="soft_l1",
-            bounds=tuple(np.array([_SCALE_BOUNDS[name] for name in free]).T),
+            bounds=tuple(np.array([SCALE_BOUNDS[name] for name in free]).T),
         )
         chosen = factors(result.x)
     after = residuals(chosen)
@@ -459,9 +523,20 @@ def fit_scales(
         chosen["speed"],
         chosen["turn"],
         chosen["coupling"],
-        len(starts),
+        count,
         float(np.sqrt(np.mean(raw[:, 2] ** 2))),
         float(np.sqrt(np.mean(after[:, 2] ** 2))),
         float(np.sqrt(np.mean(np.sum(raw[:, :2] ** 2, axis=1)))),
         float(np.sqrt(np.mean(np.sum(after[:, :2] ** 2, axis=1)))),
+    )
+
+
+def concatenate_windows(parts: list[Windows]) -> Windows:
+    """The windows of several recordings as one set (they are independent under the
+    model, so a noise model pooled over recordings is fitted on their union)."""
+    return Windows(
+        *(
+            np.concatenate([getattr(part, name) for part in parts])
+            for name in ("t_start", "t_end", "residuals", "bases", "reference_covariance")
+        )
     )

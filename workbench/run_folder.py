@@ -99,6 +99,8 @@ def run_provenance(result: RunResult) -> dict[str, Any]:
         "reference_source": result.sequence.metadata.get("reference_source"),
         # truth the loader excluded from the scoring (e.g. Vicon glitches) [s]
         "excluded_truth_s": result.sequence.metadata.get("excluded_truth_s"),
+        # what the loader fitted its models on (UTIAS: other robots' Vicon, or the scored one's)
+        "calibration": result.sequence.metadata.get("calibration"),
         "git_revision": git_revision(),
         "package_versions": package_versions(),
     }

@@ -116,6 +116,12 @@ class PairSummary:
     def errors(self) -> list[str]:
         return [f"seed {run.seed}: {run.error}" for run in self.runs if not run.finished]
 
+    def calibrations(self) -> list[str]:
+        """What the runs' loaders fitted their noise and calibration models on (metrics.json
+        ``calibration``, e.g. UTIAS' other robots), each once."""
+        found = [(run.metrics or {}).get("calibration") for run in self.runs]
+        return list(dict.fromkeys(str(text) for text in found if text))
+
     def warnings(self) -> list[str]:
         """The runs' warnings (``workbench.degradations``), each once, with the seeds it
         came from when there are several runs."""

@@ -119,11 +119,13 @@ def _shown_blocks(rows: list[PairSummary]) -> list[str]:
 
 
 def table_notes(rows: list[PairSummary], notes: list[str] = ()) -> list[str]:
-    """Notes under a table: the plan's notes, n/a pairs with the reason, failures, the runs'
+    """Notes under a table: the plan's notes, what each dataset's models were fitted on
+    (its calibration), n/a pairs with the reason, failures, the runs'
     warnings (dropped rows, sightings not used as stated), and the rows whose causal
     columns are blank because the estimator has no causal estimate."""
     found = list(notes)
     for row in rows:
+        found.extend(f"calibration of {row.dataset}: {text}" for text in row.calibrations())
         if row.status == "n/a":
             found.append(f"n/a {row.dataset} / {row.estimator}: {row.reason}")
         for error in row.errors():
