@@ -60,6 +60,9 @@ class Diagnostics:
             map id it was associated with or created (``-1`` otherwise), the
             ``AssociationDecision`` value, why it was not used ("" when matched or new), and
             the factor its noise was inflated by (1 unless a known id fell outside the gate).
+        assoc_alternatives: (A,) how many other interpretations a geometric decision had
+            within the new-landmark gate (``ScanAssociation.alternatives``), -1 where not
+            judged (ids, multiple hypotheses); empty when the run recorded none.
         landmark_count_t, landmark_count: landmarks in the state after each scan, (S,).
         events: discrete events (loop closures, skipped inputs, ...).
         extras: estimator-specific per-step arrays saved into the run's npz.
@@ -81,6 +84,7 @@ class Diagnostics:
     landmark_count: np.ndarray
     events: tuple[Event, ...] = ()
     extras: dict[str, np.ndarray] = field(default_factory=dict)
+    assoc_alternatives: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
     @property
     def assoc_is_new(self) -> np.ndarray:
@@ -182,6 +186,7 @@ class EstimateRecorder:
         self._assoc_decisions: list[str] = []
         self._assoc_reasons: list[str] = []
         self._assoc_inflation: list[float] = []
+        self._assoc_alternatives: list[int] = []
         self._counts: list[tuple[float, int]] = []
         self._events: list[Event] = []
         self._extras: dict[str, list[np.ndarray]] = {}
@@ -260,14 +265,17 @@ class EstimateRecorder:
         decision: AssociationDecision | str,
         reason: str = "",
         inflation: float = 1.0,
+        alternatives: int = -1,
     ) -> None:
         """One sighting: the map id it matched or created (-1 otherwise), the decision,
-        why it was not used, and its noise inflation."""
+        why it was not used, its noise inflation, and how many other interpretations a
+        geometric decision had (``ScanAssociation.alternatives_of``; -1: not judged)."""
         decision = AssociationDecision(decision)
         self._assoc.append((float(t), int(measurement_index), int(landmark_id)))
         self._assoc_decisions.append(decision.value)
         self._assoc_reasons.append(str(reason))
         self._assoc_inflation.append(float(inflation))
+        self._assoc_alternatives.append(int(alternatives))
 
     def landmark_count(self, t: float, count: int) -> None:
         self._counts.append((float(t), int(count)))
@@ -320,6 +328,7 @@ class EstimateRecorder:
             landmark_count=counts[:, 1].astype(int),
             events=tuple(self._events),
             extras={name: np.stack(rows) for name, rows in self._extras.items()},
+            assoc_alternatives=np.array(self._assoc_alternatives, dtype=int),
         )
 
     def build(

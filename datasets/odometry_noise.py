@@ -117,17 +117,12 @@ class OdometryNoiseModel:
 
 def read_model_file(path: Path) -> OdometryNoiseModel:
     """An ``OdometryNoiseModel`` from a YAML file written by ``workbench calibrate-noise``."""
-    import yaml
+    from datasets.yaml_files import read_yaml_file
 
     path = Path(path).expanduser()
     if not path.is_file():
         raise InputError(f"{path}: odometry noise model file not found")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as error:
-        raise InputError(
-            f"{path}: not a YAML odometry noise model ({type(error).__name__})"
-        ) from None
+    data = read_yaml_file(path)
     if not isinstance(data, dict):
         raise InputError(f"{path}: expected a mapping with 'rates'")
     block = data.get("odometry_noise", data)

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from typing import TypeVar
 
-import yaml
 from pydantic import BaseModel, ValidationError
 
 from datasets.errors import InputError
+from datasets.yaml_files import yaml_text
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
 
@@ -28,11 +28,26 @@ def parse_assignments(assignments: list[str] | tuple[str, ...], flag: str) -> di
 
 
 def yaml_value(text: str) -> object:
-    """A ``key=value`` right-hand side as a YAML scalar or list (plain string if not YAML)."""
+    """A ``key=value`` right-hand side as a YAML scalar or list (plain string if not YAML).
+
+    Read by ``datasets.yaml_files`` rules: text with an anchor or alias (``&a``, ``*a``)
+    or a repeated key stays the plain string, so a value never expands beyond what was typed.
+    """
     try:
-        return yaml.safe_load(text) if text != "" else ""
-    except yaml.YAMLError:
+        return yaml_text(text, "value") if text != "" else ""
+    except InputError:
         return text
+
+
+def _problem(item: dict) -> str:
+    """One pydantic error as ``key: what is wrong, got VALUE`` (the value when there was one
+    to show: not for a missing or unknown key, whose name says it all)."""
+    key = ".".join(str(part) for part in item["loc"]) or "(config)"
+    text = f"{key}: {item['msg']}"
+    if item["loc"] and item["type"] not in ("missing", "extra_forbidden"):
+        shown = repr(item.get("input"))
+        text += f", got {shown if len(shown) <= 60 else shown[:57] + '...'}"
+    return text
 
 
 def build_model(model: type[ModelT], values: dict[str, object], context: str) -> ModelT:
@@ -44,10 +59,7 @@ def build_model(model: type[ModelT], values: dict[str, object], context: str) ->
     try:
         return model.model_validate(values)
     except ValidationError as error:
-        problems = "; ".join(
-            f"{'.'.join(str(part) for part in item['loc']) or '(config)'}: {item['msg']}"
-            for item in error.errors()
-        )
+        problems = "; ".join(_problem(item) for item in error.errors())
         known = ", ".join(model.model_fields)
         raise InputError(f"{context}: {problems} (known keys: {known})") from None
 

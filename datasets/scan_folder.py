@@ -2,7 +2,9 @@
 
 Formats: KITTI ``.bin`` (float32 x, y, z, intensity), ``.pcd`` (``DATA ascii`` or
 ``binary``; ``binary_compressed`` is refused with a clear error), ``.ply`` (``ascii`` or
-``binary_little_endian``/``binary_big_endian`` vertex elements). Per-point times come from
+``binary_little_endian``/``binary_big_endian`` vertex elements); suffixes in any case. One
+file per frame: a frame index (the name without its suffix) present twice, in two formats,
+is an error naming both files. Per-point times come from
 a ``time``/``t``/``timestamp``/``offset_time`` field when a PCD/PLY has one (same unit rules
 as bags, ``datasets.bags.pointcloud2``); without one the clouds are taken as
 motion-compensated, unless option ``point_times=azimuth`` derives the times of an
@@ -20,6 +22,7 @@ Ground truth: an optional TUM file (option ``ground_truth``).
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -41,6 +44,7 @@ from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import GroundTruth, StateHistory
+from datasets.text_files import text_lines
 from datasets.trajectory_io import read_tum
 
 SUFFIXES = (".bin", ".pcd", ".ply")
@@ -110,14 +114,60 @@ def _cloud_from_records(
     return points[finite], (times[finite] if times is not None else None)
 
 
+_NOT_TEXT = re.compile(rb"[^\t\n\r\x20-\x7e]")
+
+
+def _ascii_table(
+    path: Path, body: bytes, first_line: int, columns: int, rows: int, declared: str
+) -> np.ndarray:
+    """The first ``rows`` number rows of an ASCII point body, shape (rows, columns).
+
+    Args:
+        body: the bytes after the header, whose first line is ``first_line`` of the file.
+        declared: what the header says a row holds (for messages), e.g. ``FIELDS x y z``.
+
+    Raises:
+        InputError: naming the file (and the line) for a binary body, a row with too few or
+            too many values, a word where a number belongs, or fewer rows than declared.
+    """
+    binary = _NOT_TEXT.search(body)
+    if binary:
+        raise InputError(
+            f"{path}: declared ascii, but its body holds binary bytes (0x{body[binary.start()]:02x} "
+            f"at byte {binary.start()} after the header): a binary file with the wrong header?"
+        )
+    numbered = [
+        (number, line.split())
+        for number, line in enumerate(body.decode("ascii").splitlines(), start=first_line)
+        if line.strip()
+    ][:rows]
+    if len(numbered) < rows:
+        raise InputError(f"{path}: {len(numbered)} point rows, its header declares {rows}")
+    for number, words in numbered:
+        if len(words) != columns:
+            raise InputError(
+                f"{path}:{number}: {len(words)} values, its header declares {columns} ({declared})"
+            )
+    try:
+        return np.array([words for _, words in numbered], dtype=float).reshape(rows, columns)
+    except ValueError:  # find the word, to name its line
+        for number, words in numbered:
+            for word in words:
+                try:
+                    float(word)
+                except ValueError:
+                    raise InputError(f"{path}:{number}: '{word}' is not a number") from None
+        raise
+
+
 def read_bin(path: Path) -> np.ndarray:
     """KITTI velodyne scan: float32 (x, y, z, intensity) records -> (n, 3)."""
-    raw = np.fromfile(path, dtype="<f4")
-    if raw.size % 4:
+    blob = path.read_bytes()
+    if len(blob) % 16:
         raise InputError(
-            f"{path}: {raw.size * 4} bytes is not a whole number of KITTI points (16 bytes each)"
+            f"{path}: {len(blob)} bytes is not a whole number of KITTI points (16 bytes each)"
         )
-    points = raw.reshape(-1, 4)[:, :3].astype(np.float64)
+    points = np.frombuffer(blob, dtype="<f4").reshape(-1, 4)[:, :3].astype(np.float64)
     return points[np.all(np.isfinite(points), axis=1)]
 
 
@@ -128,20 +178,29 @@ def read_pcd(
     blob = path.read_bytes()
     header: dict[str, list[str]] = {}
     offset = 0
+    line_number = 0
     while True:
         end = blob.find(b"\n", offset)
         if end < 0:
             raise InputError(f"{path}: PCD header ends without a DATA line")
         line = blob[offset:end].decode("ascii", errors="replace").strip()
         offset = end + 1
+        line_number += 1
         if not line or line.startswith("#"):
             continue
         key, *values = line.split()
         header[key.upper()] = values
         if key.upper() == "DATA":
             break
+    names = tuple(header.get("FIELDS", ()))
+    for key in ("SIZE", "TYPE", "COUNT"):
+        # zip() would pair them silently short: a field read with another's size
+        if len(header.get(key, names)) != len(names):
+            raise InputError(
+                f"{path}: PCD header declares {len(names)} FIELDS ({' '.join(names)}) but "
+                f"{len(header.get(key, ()))} {key} values"
+            )
     try:
-        names = tuple(header["FIELDS"])
         sizes = [int(v) for v in header["SIZE"]]
         kinds = header["TYPE"]
         counts = [int(v) for v in header.get("COUNT", ["1"] * len(names))]
@@ -150,26 +209,32 @@ def read_pcd(
             if "POINTS" in header
             else int(header["WIDTH"][0]) * int(header.get("HEIGHT", ["1"])[0])
         )
-        formats = [
-            (_PCD_TYPES[(kind, size)], (count,)) if count > 1 else _PCD_TYPES[(kind, size)]
-            for kind, size, count in zip(kinds, sizes, counts)
-        ]
     except (KeyError, ValueError, IndexError) as error:
         raise InputError(
             f"{path}: malformed PCD header ({type(error).__name__}: {error})"
         ) from None
+    if points_count < 0 or min(counts, default=1) < 1:
+        raise InputError(f"{path}: PCD header declares a negative POINTS or a COUNT below 1")
+    unknown = [(n, k, z) for n, k, z in zip(names, kinds, sizes) if (k, z) not in _PCD_TYPES]
+    if unknown:
+        name, kind, size = unknown[0]
+        raise InputError(f"{path}: PCD field '{name}' has TYPE {kind} SIZE {size}: no PCD type")
+    formats = [
+        (_PCD_TYPES[(kind, size)], (count,)) if count > 1 else _PCD_TYPES[(kind, size)]
+        for kind, size, count in zip(kinds, sizes, counts)
+    ]
     names = tuple(name if name != "_" else f"_pad{index}" for index, name in enumerate(names))
-    mode = header["DATA"][0].lower()
+    mode = (header["DATA"] or ["(nothing)"])[0].lower()
     if mode == "ascii":
-        text = blob[offset:].decode("ascii", errors="replace")
-        table = (
-            np.loadtxt(text.splitlines(), ndmin=2) if text.strip() else np.zeros((0, sum(counts)))
-        )
         columns = np.cumsum([0] + counts)
-        if table.shape[1] != columns[-1]:
-            raise InputError(
-                f"{path}: PCD ascii rows have {table.shape[1]} values, header declares {columns[-1]}"
-            )
+        table = _ascii_table(
+            path,
+            blob[offset:],
+            line_number + 1,
+            int(columns[-1]),
+            points_count,
+            f"FIELDS {' '.join(names)}",
+        )
         records = {name: table[:, columns[k]] for k, name in enumerate(names)}
         return _cloud_from_records(records, names, stamp, path, time_unit)  # type: ignore[arg-type]
     if mode == "binary":
@@ -179,6 +244,13 @@ def read_pcd(
                 "formats": ["<" + f if isinstance(f, str) else ("<" + f[0], f[1]) for f in formats],
             }
         )
+        # an ascii body under DATA binary decodes to numbers that look like any others; binary
+        # floats are never printable text for long (and PCL pads binary files with zeros)
+        if points_count and not _NOT_TEXT.search(blob[offset : offset + 4096]):
+            raise InputError(
+                f"{path}: declared DATA binary, but its body is text: an ascii file with the "
+                "wrong header?"
+            )
         if len(blob) - offset < dtype.itemsize * points_count:
             raise InputError(
                 f"{path}: PCD binary data is {len(blob) - offset} bytes, header declares {dtype.itemsize * points_count}"
@@ -196,31 +268,49 @@ def read_ply(
     end = blob.find(b"end_header")
     if not blob.startswith(b"ply") or end < 0:
         raise InputError(f"{path}: not a PLY file (no 'ply' magic or 'end_header')")
-    body = blob.index(b"\n", end) + 1
+    newline = blob.find(b"\n", end)
+    if newline < 0:
+        raise InputError(f"{path}: PLY header's 'end_header' line does not end (no data)")
+    body = newline + 1
     lines = blob[:end].decode("ascii", errors="replace").splitlines()
     fmt, count, names, formats, in_vertex, before = None, 0, [], [], False, 0
-    for line in lines:
+    for number, line in enumerate(lines, start=1):
         words = line.split()
         if not words:
             continue
-        if words[0] == "format":
-            fmt = words[1]
-        elif words[0] == "element":
-            in_vertex = words[1] == "vertex"
-            if in_vertex:
-                count = int(words[2])
-            elif not names:
-                before += 1
-        elif words[0] == "property" and in_vertex:
-            if words[1] == "list" or words[1] not in _PLY_TYPES:
-                raise InputError(f"{path}: unsupported PLY vertex property '{' '.join(words[1:])}'")
-            formats.append(_PLY_TYPES[words[1]])
-            names.append(words[2])
+        try:
+            if words[0] == "format":
+                fmt = words[1]
+            elif words[0] == "element":
+                in_vertex = words[1] == "vertex"
+                if in_vertex:
+                    count = int(words[2])
+                elif not names:
+                    before += 1
+            elif words[0] == "property" and in_vertex:
+                if words[1] == "list" or words[1] not in _PLY_TYPES:
+                    raise InputError(
+                        f"{path}:{number}: unsupported PLY vertex property '{' '.join(words[1:])}'"
+                    )
+                formats.append(_PLY_TYPES[words[1]])
+                names.append(words[2])
+        except (IndexError, ValueError):
+            raise InputError(
+                f"{path}:{number}: malformed PLY header line '{line.strip()}'"
+            ) from None
+    if count < 0:
+        raise InputError(f"{path}: PLY header declares {count} vertices")
     if before:
         raise InputError(f"{path}: PLY elements before 'vertex' are not supported")
     if fmt == "ascii":
-        text = blob[body:].decode("ascii", errors="replace").splitlines()[:count]
-        table = np.loadtxt(text, ndmin=2) if count else np.zeros((0, len(names)))
+        table = _ascii_table(
+            path,
+            blob[body:],
+            blob[:body].count(b"\n") + 1,
+            len(names),
+            count,
+            f"properties {' '.join(names)}",
+        )
         records = {name: table[:, k] for k, name in enumerate(names)}
         return _cloud_from_records(records, tuple(names), stamp, path, time_unit)  # type: ignore[arg-type]
     if fmt in ("binary_little_endian", "binary_big_endian"):
@@ -237,10 +327,11 @@ def read_ply(
 
 def read_scan(path: Path, stamp: float, time_unit: str = "auto") -> PointCloud:
     """One scan file -> ``PointCloud`` at ``stamp``."""
+    suffix = path.suffix.lower()  # 000125.PCD is a PCD file too
     try:
-        if path.suffix == ".bin":
+        if suffix == ".bin":
             points, times = read_bin(path), None
-        elif path.suffix == ".pcd":
+        elif suffix == ".pcd":
             points, times = read_pcd(path, stamp, time_unit)
         else:
             points, times = read_ply(path, stamp, time_unit)
@@ -259,7 +350,7 @@ def frame_times(folder: Path, files: list[Path], settings: ScanFolderOptions) ->
     for candidate in candidates:
         if candidate.is_file():
             values = []
-            for number, line in enumerate(candidate.read_text().splitlines(), start=1):
+            for number, line in text_lines(candidate, "timestamps file"):
                 if line.strip() and not line.lstrip().startswith("#"):
                     try:
                         values.append(float(line.split()[0]))
@@ -267,6 +358,10 @@ def frame_times(folder: Path, files: list[Path], settings: ScanFolderOptions) ->
                         raise InputError(
                             f"{candidate}:{number}: not a time '{line.strip()}'"
                         ) from None
+                    if not np.isfinite(values[-1]):
+                        raise InputError(
+                            f"{candidate}:{number}: time '{line.strip()}' is not finite"
+                        )
             times = np.array(values)
             if len(times) < len(files):
                 raise InputError(f"{candidate}: {len(times)} times for {len(files)} scans")
@@ -295,6 +390,14 @@ def scans_sequence(
     files = sorted(path for path in folder.iterdir() if path.suffix.lower() in SUFFIXES)
     if not files:
         raise InputError(f"{folder}: no .bin, .pcd or .ply scans")
+    seen: dict[str, Path] = {}
+    for path in files:  # each file is one frame: one index twice would be read twice
+        first = seen.setdefault(path.stem, path)
+        if first is not path:
+            raise InputError(
+                f"{folder}: frame {path.stem} is there twice, as {first.name} and {path.name}; "
+                "keep one"
+            )
     times = frame_times(folder, files, settings)
     steps = np.diff(times)
     order_problem = np.flatnonzero(steps <= 0)

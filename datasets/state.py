@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from datasets.trajectory import Trajectory
+from datasets.truth_quality import TruthInterval, excluded_mask
 
 
 class Frame(enum.StrEnum):
@@ -166,6 +167,9 @@ class GroundTruth:
             to score data association.
         held_out_positions: positions withheld from the estimators and kept for evaluation
             (e.g. held-out GPS fixes) as ``(t[M], positions[M, d])``, or None.
+        excluded: time intervals where the truth is not trustworthy
+            (``datasets.truth_quality.assess_truth``): the metrics score nothing inside them
+            and never interpolate the truth across them. Empty: all of it is trusted.
     """
 
     history: StateHistory
@@ -173,7 +177,13 @@ class GroundTruth:
     body_velocity: StateBlock | None = None
     scan_ids: tuple[tuple[float, np.ndarray], ...] = ()
     held_out_positions: tuple[np.ndarray, np.ndarray] | None = None
+    excluded: tuple[TruthInterval, ...] = ()
 
     @property
     def pose(self) -> Trajectory | None:
         return self.history.pose
+
+    def trusted(self, times: np.ndarray) -> np.ndarray:
+        """(N,) bool: True for times [s], shape (N,), outside every ``excluded`` interval
+        (edges belong to the interval)."""
+        return ~excluded_mask(np.asarray(times, dtype=float), self.excluded)

@@ -4,6 +4,8 @@ TUM: one pose a line, ``t x y z qx qy qz qw`` (note: TUM orders the quaternion x
 our interface order is w, x, y, z and the conversion happens here only). Planar
 trajectories are written with z = 0 and a rotation about z, so evo reads them.
 KITTI: one pose a line, the 12 entries of the top 3x4 of the homogeneous matrix, no time.
+Which of the two a file holds is read from its rows (``trajectory_format``), not only from
+its name.
 """
 
 from __future__ import annotations
@@ -42,6 +44,11 @@ def write_atomic(path: str | Path, data: bytes | str) -> Path:
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(temp_name, path)
+    except OSError as error:
+        Path(temp_name).unlink(missing_ok=True)
+        if error.filename is None:  # a failed write or fsync names no file: name ours
+            raise OSError(error.errno, error.strerror, str(path)) from error
+        raise
     except BaseException:
         Path(temp_name).unlink(missing_ok=True)
         raise
@@ -160,6 +167,11 @@ def read_kitti(path: str | Path, t: np.ndarray | None = None) -> Trajectory:
         rotation = np.array(values).reshape(3, 4)[:, :3]
         if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-3):
             raise InputError(f"{path}:{line_number}: the 3x3 block is not a rotation")
+        if np.linalg.det(rotation) < 0:  # orthogonal, but a mirror: no pose has it
+            raise InputError(
+                f"{path}:{line_number}: the 3x3 block has determinant -1 (a reflection), "
+                "not a rotation"
+            )
         rows.append(values)
     if not rows:
         raise InputError(f"{path}: no poses in file")
@@ -169,6 +181,43 @@ def read_kitti(path: str | Path, t: np.ndarray | None = None) -> Trajectory:
     if len(times) != len(rows):
         raise InputError(f"{path}: {len(rows)} poses but {len(times)} times")
     return trajectory_from_homogeneous(times, poses)
+
+
+TUM_ROW = "8 numbers, time first (t x y z qx qy qz qw): a TUM file"
+KITTI_ROW = "12 numbers, no time (a 3x4 pose): a KITTI pose file"
+_ROWS = {8: ("tum", TUM_ROW), 12: ("kitti", KITTI_ROW)}
+_SUFFIXES = {".tum": "tum", ".kitti": "kitti"}
+
+
+def trajectory_format(path: str | Path) -> str:
+    """``"tum"`` or ``"kitti"``: what a trajectory file holds, read from its first pose row
+    (comments and blank lines aside), so that a KITTI file is never taken for TUM stamps.
+
+    A ``.tum`` or ``.kitti`` suffix must agree with the rows: ``InputError`` naming the file,
+    the line and what its rows look like otherwise. Any other suffix (``.txt``) lets the rows
+    decide. A first row of another length is left to the reader the suffix names (TUM unless
+    ``.kitti``), which reports the line; so is an empty or unreadable file.
+    """
+    path = Path(path)
+    claimed = _SUFFIXES.get(path.suffix.lower())
+    what = {"tum": "TUM file", "kitti": "KITTI pose file"}.get(claimed or "", "trajectory file")
+    first = next(
+        (
+            (number, len(line.replace(",", " ").split()))
+            for number, line in text_lines(path, what)
+            if line.strip() and not line.lstrip().startswith("#")
+        ),
+        None,
+    )
+    if first is None or first[1] not in _ROWS:
+        return claimed or "tum"
+    content, rows = _ROWS[first[1]]
+    if claimed is not None and claimed != content:
+        raise InputError(
+            f"{path}:{first[0]}: named {path.suffix} but its rows hold {rows}; "
+            f"rename it .{content} (or .txt, to let its rows decide)"
+        )
+    return content
 
 
 def save_npz_atomic(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:

@@ -34,7 +34,7 @@ marginalises the keys whose time is strictly earlier than ``latest time - lag``
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import gtsam
@@ -316,10 +316,13 @@ class FixedLagBackend(_Incremental):
         relinearize_skip: int,
         dimension: int = 3,
         factorization: str = "CHOLESKY",
+        clock: Callable[[float], float] | None = None,
     ) -> None:
         super().__init__(dimension, relinearize_threshold, relinearize_skip, factorization)
         self.lag_s = lag_s
         self.smoother = gtsam.IncrementalFixedLagSmoother(lag_s, self.params())
+        # the time the lag is counted in (``smoothers.lag_clock``); key stamps are kept in it
+        self.clock = clock if clock is not None else float
         self.key_times: dict[int, float] = {}
 
     @staticmethod
@@ -331,8 +334,9 @@ class FixedLagBackend(_Incremental):
 
     def _solver_update(self, graph, values, key_times, newest) -> None:
         # GTSAM's fixed-lag smoother sets its own ordering constraints (what leaves first)
-        self.smoother.update(graph, values, self._stamps(key_times))
-        self._track(key_times)
+        stamped = {key: self.clock(stamp) for key, stamp in key_times.items()}
+        self.smoother.update(graph, values, self._stamps(stamped))
+        self._track(stamped)
 
     def _track(self, key_times: dict[int, float]) -> None:
         self.key_times.update(key_times)
@@ -367,8 +371,10 @@ class FixedLagBackend(_Incremental):
         return fetch_values(self.smoother, keys, self.dimension)
 
     def leaving(self, t_new: float) -> list[int]:
-        """Keys an update whose latest time is ``t_new`` will marginalise (time < t_new - lag)."""
-        return [key for key, stamp in self.key_times.items() if stamp < t_new - self.lag_s]
+        """Keys an update whose latest time is ``t_new`` [s, wall] will marginalise (clock
+        time < clock(t_new) - lag)."""
+        cutoff = self.clock(t_new) - self.lag_s
+        return [key for key, stamp in self.key_times.items() if stamp < cutoff]
 
     def contains(self, key: int) -> bool:
         return key in self.key_times

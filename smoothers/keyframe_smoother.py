@@ -208,6 +208,10 @@ class KeyframeSmoother:
         if bridge is not None and t - self.keyframe_t[-1] >= bridge:
             self._open_group(t)
 
+    def _keyframe_group(self, t: float, informative: bool) -> None:
+        """Hook: a keyframe group at ``t`` [s] is committed; ``informative`` when it carries
+        a measurement other than motion (fixed lag advances its clock)."""
+
     def bridge_interval_s(self) -> float | None:
         """The longest stretch without a keyframe [s] (None: no limit); a mode whose window
         must not run empty says how long."""
@@ -223,6 +227,7 @@ class KeyframeSmoother:
         assert group is not None
         self.group = None
         t = group.t
+        self._keyframe_group(t, bool(group.scans or group.fixes))
         k = len(self.keyframe_t) - 1
         created = t > self.keyframe_t[-1]
         if created:

@@ -198,7 +198,9 @@ class LandmarkScans:
                         # as a new landmark (which read as missed: UTIAS recall 0.96 with ids)
                         decision = AssociationDecision.MATCHED
             if landmark is None:
-                self.recorder.association(scan.t, index, -1, decision, reason)
+                self.recorder.association(
+                    scan.t, index, -1, decision, reason, 1.0, association.alternatives_of(index)
+                )
                 continue
             self.pending.add(
                 point_factor(
@@ -214,7 +216,13 @@ class LandmarkScans:
             landmark.last_t = scan.t
             self.pending.touch(landmark.key, scan.t)
             self.recorder.association(
-                scan.t, index, landmark.map_id, decision, reason, association.inflation[index]
+                scan.t,
+                index,
+                landmark.map_id,
+                decision,
+                reason,
+                association.inflation[index],
+                association.alternatives_of(index),
             )
         self.recorder.landmark_count(scan.t, self.alive_count())
 

@@ -33,6 +33,7 @@ import gtsam
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate
+from datasets.measurements import Sensor
 from datasets.sequence import Sequence
 from smoothers.backends import FixedLagBackend
 from smoothers.config import BatchConfig, FixedLagConfig, Isam2Config
@@ -41,6 +42,7 @@ from smoothers.gtsam_errors import explain, gtsam_message
 from smoothers.initialization import dead_reckoning_values, levenberg_marquardt
 from smoothers.joint_marginals import JointMarginals
 from smoothers.keyframe_smoother import KeyframeSmoother
+from smoothers.lag_clock import InformationClock
 from smoothers.lag_window import WindowExports
 from smoothers.smoothed_output import with_map
 
@@ -145,6 +147,14 @@ class SmootherFixedLag(KeyframeSmoother):
     mode: ClassVar[str] = "fixed-lag"
 
     def __init__(self, config: FixedLagConfig, sequence: Sequence) -> None:
+        # what the lag is counted in (``smoothers.lag_clock``), before the backend exists;
+        # a sequence without sightings or fixes has nothing to wait for: wall-clock time
+        informative = {Sensor.LANDMARKS, Sensor.GPS} & set(sequence.sensors)
+        self.lag_clock = (
+            InformationClock(sequence.initial_state.t if sequence.initial_state else 0.0)
+            if config.lag_clock == "informative" and informative
+            else None
+        )
         super().__init__(config, sequence)
         self.exports = WindowExports(self.motion, self.dimension)
         self.causal_covariances = config.causal_covariances
@@ -156,7 +166,12 @@ class SmootherFixedLag(KeyframeSmoother):
             self.config.relinearize_skip,
             self.dimension,
             self.config.factorization,
+            clock=self.lag_clock,
         )
+
+    def _keyframe_group(self, t: float, informative: bool) -> None:
+        if self.lag_clock is not None:
+            self.lag_clock.advance(t, informative)
 
     def _before_update(self, t_new: float) -> None:
         """Export what leaves the window with this update (``smoothers.lag_window``)."""

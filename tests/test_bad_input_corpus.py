@@ -641,8 +641,9 @@ def test_bad_input_is_one_clear_error_and_loses_nothing(
 ) -> None:
     folder, before = earlier_run
     argv = build(tmp_path)
+    fresh_out = tmp_path / "bag-out"  # bag writes a collection, never into a run folder
     if _takes_out(argv):
-        argv = [*argv, "--out", str(folder)]
+        argv = [*argv, "--out", str(folder if argv[0] == "run" else fresh_out)]
     capsys.readouterr()
     status = main(argv)
     captured = capsys.readouterr()
@@ -654,6 +655,7 @@ def test_bad_input_is_one_clear_error_and_loses_nothing(
     assert "Traceback" not in captured.err and "internal error" not in captured.err
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
     assert not [p for p in folder.parent.iterdir() if p.name.startswith(".run.")]
+    assert not fresh_out.exists()  # refused before anything was written
 
 
 def test_the_corpus_covers_every_source() -> None:

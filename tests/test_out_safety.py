@@ -138,8 +138,16 @@ def test_a_second_writer_exits_2_naming_the_first(
     the first's folder is whole."""
     out = tmp_path / "shared"
     first = subprocess.Popen(
-        _cli("run", "dead-reckoning", "sim:circle", "--data", "duration_s=60", "--no-plots",
-             "--out", str(out)),  # fmt: skip
+        _cli(
+            "run",
+            "dead-reckoning",
+            "sim:circle",
+            "--data",
+            "duration_s=60",
+            "--no-plots",
+            "--out",
+            str(out),
+        ),  # fmt: skip
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},

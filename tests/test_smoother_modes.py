@@ -209,3 +209,45 @@ def test_isam2_smoothed_history_is_the_converged_solution_also_for_small_unit_va
     batch_bias = batch.smoothed.block("gyro_bias")
     sigma = np.sqrt(batch_bias.covariances[:, 0, 0])
     assert np.max(np.abs(isam2_bias.values[:, 0] - batch_bias.values[:, 0]) / sigma) < 0.1
+
+
+def test_the_information_clock_stands_still_on_motion_alone():
+    from smoothers.lag_clock import InformationClock
+
+    clock = InformationClock(0.0)
+    for t, informative in ((1.0, True), (2.0, True), (10.0, False), (20.0, False), (21.0, True)):
+        clock.advance(t, informative)
+    assert [clock(t) for t in (0.0, 1.5, 2.0, 6.0, 10.0, 15.0, 20.0, 20.5, 21.0, 22.0)] == [
+        0.0, 1.5, 2.0, 2.0, 2.0, 2.0, 2.0, 2.5, 3.0, 4.0,
+    ]  # fmt: skip
+    assert clock.held_s == 18.0
+
+
+@pytest.mark.parametrize("lag_clock", ["informative", "wall"])
+def test_a_stretch_without_sightings_stays_in_the_window_until_its_end_is_solved(lag_clock):
+    """Sightings removed for 3 lags: with the informative clock no keyframe of the stretch
+    leaves the window before the sightings that end it arrive; on the wall clock most do
+    (the failure ``smoothers.lag_clock`` describes)."""
+    from dataclasses import replace
+
+    sequence = load_dataset("sim:guerreiro-loop", 0, {"duration_s": "16"})
+    gap = (8.0, 8.0 + 3 * 2.0)
+
+    def stream():
+        for m in sequence.measurements():
+            if not (isinstance(m, LandmarkScan) and gap[0] <= m.t <= gap[1]):
+                yield m
+
+    gapped = replace(sequence, stream=stream)
+    smoother = SmootherFixedLag(SmootherFixedLag.Config(lag_s=2.0, lag_clock=lag_clock), gapped)
+    for measurement in gapped.measurements():
+        if measurement.t > gap[1] and isinstance(measurement, LandmarkScan):
+            break  # the first sighting after the stretch: not solved yet
+        smoother.process(measurement)
+    inside = [k for k, t in enumerate(smoother.keyframe_t) if gap[0] <= t <= gap[1]]
+    left = [k for k in inside if k in smoother.exports.keyframes]
+    assert len(inside) >= 3
+    if lag_clock == "informative":
+        assert left == []
+    else:
+        assert len(left) >= len(inside) // 2

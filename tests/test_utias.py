@@ -292,21 +292,25 @@ def test_irregular_printed_times_gap_and_duplicate_rows(tmp_path: Path) -> None:
         load_mrclam(folder, 1, UtiasOptions(**RAW_ODOMETRY))
 
 
-def test_vicon_position_glitch_is_detected_and_leaves_the_truth(tmp_path: Path) -> None:
-    odometry = grid_odometry(200)
-    folder = write_folder(tmp_path / "d", odometry, ["0.10 72 2.0 0.1"])
-    truth_file = folder / "Robot1_Groundtruth.dat"
-    rows = truth_file.read_text().splitlines()
-    data = [i for i, line in enumerate(rows) if line.strip() and not line.startswith("#")]
-    for i in data[100:104]:  # a marker swap: the track jumps 3 m for four samples
-        t, x, y, h = rows[i].split()
-        rows[i] = f"{t} {float(x) + 3.0} {y} {h}"
-    truth_file.write_text("\n".join(rows) + "\n")
+def test_a_vicon_glitch_is_excluded_from_the_scoring_and_from_the_fits(tmp_path: Path) -> None:
+    """A marker swap (the track 3 m off for four samples) is found by the truth-quality
+    detector, listed, warned and scored nowhere; the truth keeps its samples but the
+    metrics leave them out (``GroundTruth.excluded``)."""
+    odometry = [f"{0.02 * i:.5g} 0.2 0.0" for i in range(400)]
+    truth = [f"{0.02 * i:.5g} {0.004 * i:.5f} 0.0 0.0" for i in range(400)]
+    for i in range(200, 204):
+        t, x, y, h = truth[i].split()
+        truth[i] = f"{t} {float(x) + 3.0:.5f} {y} {h}"
+    folder = write_folder(tmp_path / "d", odometry, ["0.10 72 2.0 0.1"], truth)
     sequence = load_mrclam(folder, 1, UtiasOptions(**RAW_ODOMETRY))
-    assert sequence.metadata["counts"]["vicon_position_glitch_samples"] == 4
-    assert sequence.metadata["excluded_truth_s"] == pytest.approx(4 * 0.02)
-    pose = sequence.ground_truth.pose
-    assert len(pose.t) == 200 - 4 and np.all(np.abs(np.diff(pose.positions[:, 0])) < 0.5)
+    assert sequence.metadata["counts"]["vicon_samples_excluded"] == 4
+    assert sequence.metadata["excluded_truth_s"] == pytest.approx(3 * 0.02)
+    (line,) = sequence.metadata["excluded_truth"]
+    assert line.startswith("wrong_track") and "4.000" in line and "4.060" in line
+    assert any("Vicon not trusted in 1 interval" in w for w in sequence.metadata["warnings"])
+    truth_t = sequence.ground_truth.pose.t
+    trusted = sequence.ground_truth.trusted(truth_t)
+    assert np.array_equal(np.flatnonzero(~trusted), np.arange(200, 204))
 
 
 def test_label_swaps_are_detected_from_the_sightings_not_assumed() -> None:
@@ -372,3 +376,53 @@ def test_read_table_converts_once_and_still_names_the_bad_line(tmp_path: Path) -
     table.write_text("1.0 0.5 0.1\n2.0 fast 0.1\n")
     with pytest.raises(InputError, match=r"Robot1_Odometry.dat:2: not a number"):
         read_table(table, ("time", "v", "omega"))
+
+
+# ---------------------------------------------------------------- calibration source
+def test_a_folder_with_one_robot_fits_nothing_and_says_so(tmp_path: Path) -> None:
+    folder = write_folder(tmp_path / "d", grid_odometry(50), ["0.10 72 2.0 0.1"])
+    sequence = load_mrclam(folder, 1, UtiasOptions(odometry_noise="white"))
+    assert sequence.metadata["calibration"].startswith("none")
+    assert any("holds no other robot" in line for line in sequence.metadata["warnings"])
+    assert sequence.metadata["odometry_scales"]["turn"] == 1.0
+    assert sequence.noise.sighting_correlation is None
+
+
+@needs_data
+def test_the_default_calibration_never_sees_the_scored_robots_truth(tmp_path: Path) -> None:
+    """Robot 1's Vicon corrupted (every position after 300 s moved 0.5 m): its default
+    calibration, fitted on robots 2-5, is unchanged to the last bit; the own-truth fit (kept
+    as an option, tuning on the test set) moves."""
+    folder = tmp_path / "mrclam"
+    folder.mkdir()
+    for path in UTIAS.iterdir():
+        if path.name != "Robot1_Groundtruth.dat":
+            (folder / path.name).symlink_to(path)
+    rows = []
+    for line in (UTIAS / "Robot1_Groundtruth.dat").read_text().splitlines():
+        fields = line.split()
+        if line.startswith("#") or len(fields) != 4 or float(fields[0]) < 300.0:
+            rows.append(line)
+        else:
+            rows.append(f"{fields[0]} {float(fields[1]) + 0.5:.3f} {fields[2]} {fields[3]}")
+    (folder / "Robot1_Groundtruth.dat").write_text("\n".join(rows) + "\n")
+    # the odometry calibration alone (the other fits take the same source, and time)
+    options = {
+        "duration_s": "60",
+        "odometry_noise": "white",
+        "sighting_correlation": "none",
+        "detection_probability": "none",
+    }
+    original = load(f"{UTIAS}#robot1", 0, options)
+    corrupted = load(f"{folder}#robot1", 0, options)
+    assert "not the scored robot 1" in corrupted.metadata["calibration"]
+    for key in ("speed", "turn", "coupling"):
+        assert (
+            corrupted.metadata["odometry_scales"][key] == original.metadata["odometry_scales"][key]
+        )
+    own = {**options, "calibration": "own-truth"}
+    assert "own Vicon" in load(f"{folder}#robot1", 0, own).metadata["calibration"]
+    assert (
+        load(f"{folder}#robot1", 0, own).metadata["odometry_scales"]["speed"]
+        != load(f"{UTIAS}#robot1", 0, own).metadata["odometry_scales"]["speed"]
+    )

@@ -286,32 +286,40 @@ def rerun_command(
 ) -> None:
     """Run again what a run folder's config.yaml records: estimator, dataset, seed, data
     options and the resolved estimator options."""
+    from datasets.yaml_files import read_yaml_file
     from workbench.run_folder import write_run_folder
     from workbench.runner import RUN_CONFIG_KEYS, RunRequest, execute
 
     config_file = Path(run_dir) / "config.yaml"
     if not config_file.is_file():
         raise InputError(f"{run_dir}: not a run folder (no config.yaml)")
-    import yaml
-
-    try:
-        recorded = yaml.safe_load(config_file.read_text(encoding="utf-8")) or {}
-    except (yaml.YAMLError, UnicodeDecodeError) as error:
-        raise InputError(
-            f"{config_file}: not a readable config.yaml ({type(error).__name__})"
-        ) from None
+    recorded = read_yaml_file(config_file) or {}
     if not isinstance(recorded, dict) or not RUN_CONFIG_KEYS <= set(recorded):
         raise InputError(
             f"{config_file}: not a run folder's config.yaml (needs {sorted(RUN_CONFIG_KEYS)})"
         )
+    # what `workbench run` wrote: a name for each of the two, a seed as --seed takes it
+    # (a whole number >= 0), data options as a mapping; anything else was edited by hand
+    for key in ("estimator", "dataset"):
+        if not isinstance(recorded[key], str) or not recorded[key].strip():
+            raise InputError(f"{config_file}: {key}: expected a name, got {recorded[key]!r}")
+    seed = recorded["seed"]
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(
+            f"{config_file}: seed: expected a whole number >= 0 (as --seed takes it), got {seed!r}"
+        )
+    data_options = recorded.get("data_options") or {}
+    if not isinstance(data_options, dict):
+        raise InputError(
+            f"{config_file}: data_options: expected a mapping of option: value, "
+            f"got {data_options!r}"
+        )
     request = RunRequest(
-        estimator=str(recorded["estimator"]),
-        dataset=str(recorded["dataset"]),
-        seed=int(recorded["seed"]),
+        estimator=recorded["estimator"],
+        dataset=recorded["dataset"],
+        seed=seed,
         config_file=config_file,
-        data_options=tuple(
-            (str(k), str(v)) for k, v in (recorded.get("data_options") or {}).items()
-        ),
+        data_options=tuple((str(k), str(v)) for k, v in data_options.items()),
     )
     with exclusive(out):
         check_writable(out, RUN)

@@ -6,7 +6,10 @@ keep and merge the workbench's results with theirs.
 The figures are the workbench's own (``workbench.metrics``), computed as evo computes them:
 APE of the translation part after alignment (SE(3) in 3-D, SE(2) for planar runs: evo's
 ``--align --project_to_plane xy`` equivalent), RPE of the translation part over 1 frame
-without alignment. Their RMSE equals metrics.json's ``ate_rmse_m`` and ``rpe_trans_rmse_m``.
+without alignment. Their RMSE equals metrics.json's ``ate_rmse_m`` and ``rpe_trans_rmse_m``,
+exclusions included: given the truth's ``excluded`` intervals, the reference loses its
+samples inside them before pairing, the estimate its poses inside them, and the RPE its
+pairs whose interval meets one (``workbench.metrics.summary``).
 """
 
 from __future__ import annotations
@@ -21,8 +24,10 @@ import numpy as np
 from datasets.errors import InputError
 from datasets.trajectory import Trajectory
 from datasets.trajectory_io import write_atomic
+from datasets.truth_quality import TruthInterval, excluded_mask
 from workbench.metrics.ate import ate_errors, error_statistics, paired_trajectories
 from workbench.metrics.rpe import rpe_errors
+from workbench.metrics.timestamps import straddles, trusted_samples
 
 MIN_POSES = 3
 """Fewer paired poses than this give no result (an alignment needs three)."""
@@ -48,16 +53,25 @@ def result_zip(info: dict[str, str], errors: np.ndarray, timestamps: np.ndarray)
 
 
 def write_evo_results(
-    folder: Path, reference: Trajectory, estimate: Trajectory, name: str, suffix: str = ""
+    folder: Path,
+    reference: Trajectory,
+    estimate: Trajectory,
+    name: str,
+    suffix: str = "",
+    excluded: tuple[TruthInterval, ...] = (),
 ) -> list[str]:
     """Write ``ape{suffix}.zip`` and ``rpe{suffix}.zip`` into ``folder``, the estimate
     labelled ``name`` (``evo_res`` wants the labels of the results it compares distinct);
     returns the files written (none when fewer than ``MIN_POSES`` poses pair with the
-    reference)."""
+    reference). ``excluded``: the truth's untrusted intervals (``GroundTruth.excluded``),
+    scored nowhere."""
     try:
-        ref_paired, est_paired = paired_trajectories(reference, estimate)
+        ref_paired, est_paired = paired_trajectories(trusted_samples(reference, excluded), estimate)
     except InputError:
         return []
+    if excluded:
+        inside = np.flatnonzero(~excluded_mask(est_paired.t, excluded))
+        ref_paired, est_paired = ref_paired.select(inside), est_paired.select(inside)
     if len(est_paired) < MIN_POSES:
         return []
     align = "se3" if estimate.dimension == 3 else "se2"
@@ -74,6 +88,11 @@ def write_evo_results(
     write_atomic(folder / f"ape{suffix}.zip", result_zip(ape, errors, est_paired.t))
     written = [f"ape{suffix}.zip"]
     pairs, trans, _ = rpe_errors(ref_paired, est_paired, 1, "frames")
+    if excluded:
+        whole = ~straddles(ref_paired.t[pairs[:, 0]], ref_paired.t[pairs[:, 1]], excluded)
+        pairs, trans = pairs[whole], trans[whole]
+        if len(trans) == 0:
+            return written  # every consecutive pair spans an excluded interval
     rpe = {
         "title": "RPE w.r.t. translation part (m)\nfor delta = 1 (frames) using consecutive pairs\n(not aligned)",
         "ref_name": "reference",

@@ -56,8 +56,11 @@ def chosen_run(pair: PairSummary, seed: int | None) -> RunRecord | None:
 
 
 def _npz(folder: Path, *keys: str) -> tuple[np.ndarray, ...]:
-    with np.load(folder / "estimate.npz") as data:
-        return tuple(data[key] if key in data.files else np.zeros(0) for key in keys)
+    """Arrays of a run's estimate.npz (checked: a damaged file is an ``InputError``)."""
+    from workbench.results.estimate_file import load_arrays
+
+    data = load_arrays(folder / "estimate.npz")
+    return tuple(data[key] if key in data else np.zeros(0) for key in keys)
 
 
 def _log_y(axes: plt.Axes) -> None:

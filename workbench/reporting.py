@@ -36,15 +36,22 @@ def write_report(
     plot_formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS,
     seed: int | None = None,
     submit: Callable[..., Any] | None = None,
+    reference: str | None = None,
 ) -> Report:
     """Tables of ``records`` into ``out`` and, unless ``plot_formats`` is empty, the figures
     of each dataset into ``out/plots/<dataset>`` (``seed``: the run the per-run figures
     show, the first by default; ``submit``: a backend's submit to draw datasets in
-    parallel)."""
+    parallel; ``reference``: an estimator every row's ATE is divided by, per dataset)."""
     from workbench.report_plots import write_dataset_plots
 
     out = Path(out)
-    rows = summarize(records, planned)
+    rows = summarize(records, planned, reference)
+    if reference is not None and any("ate_over_reference" in row.stats for row in rows):
+        notes = [
+            *notes,
+            f"ATE ÷ ref: each row's ATE over {reference}'s on the same dataset, causal over "
+            "causal (smoothed over smoothed for an estimator with no causal estimate)",
+        ]
     tables = write_tables(rows, out, list(notes))
     if not plot_formats:
         return Report(rows, tables, None, list(notes))

@@ -89,6 +89,8 @@ def dump_json(data: Any) -> str:
 
 def run_provenance(result: RunResult) -> dict[str, Any]:
     request = result.request
+    truth = result.sequence.ground_truth
+    excluded = () if truth is None else truth.excluded
     dataset_label, estimator_label = request.labels
     return {
         "estimator": request.estimator,
@@ -99,6 +101,8 @@ def run_provenance(result: RunResult) -> dict[str, Any]:
         "reference_source": result.sequence.metadata.get("reference_source"),
         # truth the loader excluded from the scoring (e.g. Vicon glitches) [s]
         "excluded_truth_s": result.sequence.metadata.get("excluded_truth_s"),
+        # the truth's untrusted intervals, scored nowhere (datasets.truth_quality)
+        "excluded_truth": [interval.line() for interval in excluded],
         # what the loader fitted its models on (UTIAS: other robots' Vicon, or the scored one's)
         "calibration": result.sequence.metadata.get("calibration"),
         "git_revision": git_revision(),
@@ -114,6 +118,16 @@ def run_warnings(result: RunResult) -> list[str]:
     return data_warnings(result.sequence) + association_warnings(
         result.estimate, result.sequence, result.request.estimator
     )
+
+
+def divergence_warning(metrics: dict[str, Any], estimator: str, dataset: str) -> list[str]:
+    """The run's divergence as a warning line (``workbench.metrics.divergence``), if any."""
+    if metrics.get("diverged_at_s") is None:
+        return []
+    return [
+        f"{estimator} on {dataset} diverged at t={metrics['diverged_at_s']:.1f} s: "
+        f"{metrics['divergence']}"
+    ]
 
 
 def write_run_folder(
@@ -156,7 +170,12 @@ def write_run_folder(
             if reference is not None and len(reference):
                 label = f"{request.estimator} on {result.sequence.name} seed {request.seed}"
                 write_evo_results(
-                    folder, reference, history.pose, label + suffix.replace("_", " "), suffix
+                    folder,
+                    reference,
+                    history.pose,
+                    label + suffix.replace("_", " "),
+                    suffix,
+                    excluded=truth.excluded,
                 )
         if reference is not None and len(reference):
             write_tum(folder / "reference.tum", reference)
@@ -172,7 +191,9 @@ def write_run_folder(
         write_atomic(folder / EVENTS_FILE, dump_json(events))
         save_run_consistency(estimate, result.sequence, folder / CONSISTENCY_FILE)
         metrics = compute_metrics(estimate, result.sequence)
-        metrics["warnings"] = run_warnings(result)
+        metrics["warnings"] = run_warnings(result) + divergence_warning(
+            metrics, request.estimator, result.sequence.name
+        )
         metrics.update(run_provenance(result))
         if plot_formats:
             from workbench.plots import write_run_plots

@@ -13,13 +13,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from pydantic import BaseModel
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, Estimator, StepTiming, missing_sensors
 from datasets.options import build_model, yaml_value
 from datasets.sequence import Sequence
+from datasets.yaml_files import read_yaml_file
 from workbench.registry import estimator_entry, load_dataset
 
 RUN_CONFIG_KEYS = frozenset({"estimator", "dataset", "seed", "config"})
@@ -32,24 +32,25 @@ def resolve_config(
     overrides: dict[str, str] | None = None,
 ) -> BaseModel:
     """The estimator's config: class defaults, then the YAML file (estimator options, or a
-    run folder's ``config.yaml``, whose resolved options it takes), then ``--set``
-    overrides."""
+    run folder's ``config.yaml``, whose resolved options it takes; read by
+    ``datasets.yaml_files.read_yaml_file``: at most 1 MiB, UTF-8, no anchors, aliases or
+    repeated keys), then ``--set`` overrides."""
     values: dict[str, Any] = {}
     if config_file is not None:
         config_file = Path(config_file)
         if not config_file.is_file():
             raise InputError(f"{config_file}: no such config file")
-        try:
-            loaded = yaml.safe_load(config_file.read_text()) or {}
-        except yaml.YAMLError as error:
-            raise InputError(
-                f"{config_file}: not valid YAML ({str(error).splitlines()[0]})"
-            ) from None
+        loaded = read_yaml_file(config_file) or {}
         if not isinstance(loaded, dict):
             raise InputError(f"{config_file}: expected a mapping of option: value")
         if RUN_CONFIG_KEYS <= set(loaded):
             # a run folder's config.yaml: its resolved estimator options
             loaded = loaded["config"] or {}
+            if not isinstance(loaded, dict):
+                raise InputError(
+                    f"{config_file}: config: expected a mapping of option: value (the "
+                    "estimator's resolved options)"
+                )
         values.update(loaded)
     for key, text in (overrides or {}).items():
         values[key] = yaml_value(text)

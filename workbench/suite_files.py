@@ -5,9 +5,11 @@ A suite file (the suite's name is the file's stem)::
 
     description: what it is for (one line)
     runs: 3                      # Monte Carlo runs per pair unless --runs says otherwise
+    reference: smoother-isam2    # optional: every ATE over this estimator's, per dataset
     datasets:
       - sim:circle               # a name alone, or:
-      - name: sim:guerreiro-loop # as `workbench run` takes it; {data}: the sweep's OUT/data
+      - name: sim:guerreiro-loop # as `workbench run` takes it; {data}: the sweep's OUT/data,
+                                 # {shared}: $WORKBENCH_SHARED_DATA or ../shared/data
         data: {duration_s: 20}   # --data options
         label: loop (20 s)       # its name in tables, plots and folders (default: name)
         seeded: true             # false for a recording: run once whatever --runs says
@@ -32,11 +34,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from datasets.errors import InputError, one_line
+from datasets.errors import InputError
 from datasets.options import build_model
+from datasets.yaml_files import read_yaml_file
 from workbench.suites import GENERATORS, DatasetSpec, EstimatorSpec, Options, Suite
 
 SUITE_LIBRARY = Path(__file__).resolve().parent / "suite_library"
@@ -89,6 +91,7 @@ class _SuiteFile(BaseModel):
     runs: int = Field(default=3, ge=1)
     datasets: list[str | _DatasetEntry] = Field(min_length=1)
     estimators: list[str | _EstimatorEntry] = Field(min_length=1)
+    reference: str | None = None
 
 
 def _dataset_spec(entry: str | _DatasetEntry) -> DatasetSpec:
@@ -112,14 +115,17 @@ def _estimator_spec(entry: str | _EstimatorEntry) -> EstimatorSpec:
 
 
 def load_suite_file(path: Path) -> Suite:
-    """The suite a YAML file describes; ``InputError`` naming the file and the bad key."""
+    """The suite a YAML file describes; ``InputError`` naming the file and the bad key.
+    Read by ``datasets.yaml_files.read_yaml_file``: at most 1 MiB (checked before parsing),
+    UTF-8, no anchors or aliases (a few bytes of aliases would expand to gigabytes of suite)
+    and no key written twice."""
     path = Path(path)
     try:
-        values = yaml.safe_load(path.read_text(encoding="utf-8"))
+        values = read_yaml_file(path)
     except OSError as error:
         raise InputError(f"{path}: cannot read the suite file ({error.strerror})") from None
-    except (yaml.YAMLError, UnicodeDecodeError) as error:
-        raise InputError(f"{path}: not a YAML suite file ({one_line(error)})") from None
+    except InputError as error:
+        raise InputError(f"not a YAML suite file: {error}") from None
     if not isinstance(values, dict):
         raise InputError(
             f"{path}: a suite file is a YAML mapping (description, runs, datasets, estimators)"
@@ -134,12 +140,17 @@ def load_suite_file(path: Path) -> Suite:
             raise InputError(
                 f"{path}: {kind} {', '.join(repeated)} listed twice: give each a label of its own"
             )
-    return Suite(path.stem, parsed.description, datasets, estimators, parsed.runs)
+    if parsed.reference is not None and parsed.reference not in {s.name for s in estimators}:
+        raise InputError(
+            f"{path}: reference '{parsed.reference}' is not one of the suite's estimators "
+            f"({', '.join(spec.name for spec in estimators)})"
+        )
+    return Suite(path.stem, parsed.description, datasets, estimators, parsed.runs, parsed.reference)
 
 
 def builtin_suites() -> list[str]:
     """Names of the suites that ship with the workbench, in the order ``list`` shows them."""
-    order = ["tiny", "quick", "paper", "consistency", "calibration"]
+    order = ["tiny", "quick", "paper", "consistency", "calibration", "real"]
     found = sorted(path.stem for path in SUITE_LIBRARY.glob("*.yaml"))
     return [name for name in order if name in found] + [n for n in found if n not in order]
 

@@ -27,6 +27,25 @@ Options = tuple[tuple[str, str], ...]
 DATA_FOLDER_PLACEHOLDER = "{data}"
 """Stands for ``OUT/data`` in a dataset name (files a suite generates before the sweep)."""
 
+SHARED_DATA_PLACEHOLDER = "{shared}"
+"""Stands for the folder of shared recordings in a dataset name (``shared_data_folder``)."""
+SHARED_DATA_VARIABLE = "WORKBENCH_SHARED_DATA"
+
+
+def shared_data_folder() -> Path:
+    """Where ``{shared}`` points: ``$WORKBENCH_SHARED_DATA`` when set, else the first
+    existing ``shared/data`` beside the working folder or beside the workbench's checkout
+    (``../shared/data``), else the former (a dataset there is then skipped with a note)."""
+    import os
+
+    if os.environ.get(SHARED_DATA_VARIABLE):
+        return Path(os.environ[SHARED_DATA_VARIABLE]).expanduser()
+    candidates = [
+        Path.cwd().parent / "shared" / "data",
+        Path(__file__).resolve().parents[2] / "shared" / "data",
+    ]
+    return next((path for path in candidates if path.is_dir()), candidates[0])
+
 
 def slug(text: str) -> str:
     """A file-name-safe form of ``text``: ``'sim:circle (ids=false)'`` -> ``'sim-circle-ids-false'``."""
@@ -96,8 +115,12 @@ class DatasetSpec:
         return slug(self.title)
 
     def resolved_name(self, data_folder: Path) -> str:
-        """The name with ``{data}`` replaced by ``data_folder``."""
-        return self.name.replace(DATA_FOLDER_PLACEHOLDER, str(data_folder))
+        """The name with ``{data}`` replaced by ``data_folder`` and ``{shared}`` by
+        ``shared_data_folder()``."""
+        name = self.name.replace(DATA_FOLDER_PLACEHOLDER, str(data_folder))
+        if SHARED_DATA_PLACEHOLDER in name:
+            name = name.replace(SHARED_DATA_PLACEHOLDER, str(shared_data_folder()))
+        return name
 
 
 @dataclass(frozen=True)
@@ -126,6 +149,9 @@ class Suite:
     datasets: tuple[DatasetSpec, ...]
     estimators: tuple[EstimatorSpec, ...]
     default_runs: int = 3
+    reference: str | None = None
+    """An estimator (registered name) every row's ATE is divided by, on the same dataset:
+    the table's ``ATE ÷ ref`` column (``workbench.results.summary``)."""
 
 
 def write_corridor_bag(path: Path) -> None:
@@ -144,12 +170,14 @@ def write_corridor_bag(path: Path) -> None:
     scratch = path.parent / f".partial-{path.name}"
     shutil.rmtree(scratch, ignore_errors=True)
     scratch.mkdir(parents=True)
-    written = write_lidar_bag(scratch / path.name, 0, "ros1", {})
-    for companion in scratch.iterdir():
-        if companion != written:
-            os.replace(companion, path.parent / companion.name)
-    os.replace(written, path)
-    shutil.rmtree(scratch, ignore_errors=True)
+    try:
+        written = write_lidar_bag(scratch / path.name, 0, "ros1", {})
+        for companion in scratch.iterdir():
+            if companion != written:
+                os.replace(companion, path.parent / companion.name)
+        os.replace(written, path)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)  # a failed write leaves nothing behind
 
 
 GENERATORS: dict[str, Callable[[Path], None]] = {"lidar-corridor": write_corridor_bag}

@@ -15,6 +15,27 @@ Time base: sensors rarely start together (an IMU driver started before the lidar
 samples before the first sweep). ``topic_spans`` reads each topic's first and last stamp from
 the two ends of the bag, ``common_time_base`` intersects them (``TimeBase``), and
 ``read_stream`` drops, and counts in the ``ReadReport``, every message stamped outside it.
+
+Meaning, not only form: a corrupted bag (flipped words) mostly still decodes, into numbers
+that look like any others. The checks that catch what a message can show, each violation
+skipped (or, for clouds with a few implausible points, repaired by dropping them) and
+counted per topic in the ``ReadReport``, printed as warnings naming the topic and count, and
+an ``InputError`` when a topic's skipped and repaired messages exceed
+``max_skipped_fraction`` (``check_skips``):
+- a message that does not deserialize (``iter_messages``);
+- a header stamp that jumps by more than ``STAMP_JUMP_S`` against the bag's record time,
+  compared with its topic's first message (so a constant offset between the driver's clock
+  and the recorder's is fine);
+- PointCloud2 layout, coordinate types, points (``datasets.bags.pointcloud2``);
+- IMU samples: non-finite, or |gyro| above ``MAX_GYRO_RAD_S``, |accel| above
+  ``MAX_ACCEL_M_S2``;
+- ground-truth poses: non-finite, an orientation that is not a unit quaternion (within
+  ``UNIT_QUATERNION_TOLERANCE``), a position beyond ``MAX_POSITION_M`` or reached from the
+  previous pose faster than ``MAX_TRUTH_SPEED_M_S``;
+- GPS fixes: latitude or longitude out of range.
+Containers check themselves where they can: rosbags verifies an MCAP chunk's CRC when the
+writer stored one (``ros2 bag record`` does; rosbags' own writer stores none), and a
+mismatch is an ``InputError``; sqlite3 and ROS 1 bags carry no checksums of messages.
 """
 
 from __future__ import annotations
@@ -30,12 +51,13 @@ from pathlib import Path
 import numpy as np
 
 from datasets.bags.gps import geodetic_to_enu
-from datasets.bags.pointcloud2 import decode_pointcloud2
+from datasets.bags.pointcloud2 import ABSOLUTE_TIME_S, MalformedCloud, decode_pointcloud2
 from datasets.errors import InputError
 from datasets.lidar.kiss_icp_odometry import pose_time
 from datasets.lidar.sweep_times import point_times_for, sweep_period
 from datasets.measurements import GpsFix, ImuSample, Measurement, PointCloud
 from datasets.text_files import check_regular_file
+from datasets.trajectory_io import MAX_POSITION_M
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 IMU = "sensor_msgs/msg/Imu"
@@ -44,6 +66,24 @@ ODOMETRY = "nav_msgs/msg/Odometry"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 GROUND_TRUTH_TYPES = (ODOMETRY, POSE_STAMPED)
 
+STAMP_JUMP_S = 10.0
+"""How far [s] a header stamp may move against the record (log) time from where its
+topic's first message sits: drivers stamp at capture and the recorder logs on receipt, a
+fraction of a second later (a sweep later for a cloud); a jump of ten seconds is a corrupted
+stamp or one from another clock."""
+MAX_GYRO_RAD_S = 70.0
+"""|gyro| bound [rad/s]: 4000 deg/s, the full scale of the widest-range MEMS gyros; a
+larger rate is no measurement."""
+MAX_ACCEL_M_S2 = 400.0
+"""|accel| bound [m/s^2]: about 40 g, beyond the 16-32 g full scale of the IMUs vehicles
+and handheld rigs carry."""
+MAX_TRUTH_SPEED_M_S = 100.0
+"""Between two ground-truth poses [m/s]: 360 km/h, faster than anything a lidar bag is
+recorded on; a faster step is a corrupted pose."""
+UNIT_QUATERNION_TOLERANCE = 0.01
+"""A ground-truth orientation whose norm is further than this from 1 is not a rotation a
+pose publisher wrote (rounding leaves 1e-7)."""
+
 
 @dataclass
 class ReadReport:
@@ -51,7 +91,11 @@ class ReadReport:
 
     Attributes:
         skipped: count per ``(topic, reason)``.
-        examples: the first skip of each ``(topic, reason)`` as a message naming the time.
+        repaired: messages kept after dropping what was implausible in them (points of a
+            cloud), count per ``(topic, reason)``; they count towards
+            ``max_skipped_fraction`` as skips do.
+        examples: the first skip or repair of each ``(topic, reason)`` as a message naming
+            the time.
         nonfinite_points: NaN/inf points dropped from clouds.
         messages: messages read per topic.
         missing: topic -> (messages read, messages its index lists) where fewer were read
@@ -62,6 +106,7 @@ class ReadReport:
     """
 
     skipped: Counter = field(default_factory=Counter)
+    repaired: Counter = field(default_factory=Counter)
     examples: dict[tuple[str, str], str] = field(default_factory=dict)
     nonfinite_points: int = 0
     messages: Counter = field(default_factory=Counter)
@@ -69,11 +114,28 @@ class ReadReport:
     trimmed: dict[tuple[str, str], list] = field(default_factory=dict)
 
     def skip(self, topic: str, reason: str, stamp_s: float, detail: str = "") -> None:
+        self._count(self.skipped, topic, reason, stamp_s, detail)
+
+    def repair(self, topic: str, reason: str, stamp_s: float, detail: str = "") -> None:
+        """Count a message kept after dropping its implausible parts."""
+        self._count(self.repaired, topic, reason, stamp_s, detail)
+
+    def _count(
+        self, counter: Counter, topic: str, reason: str, stamp_s: float, detail: str
+    ) -> None:
         key = (topic, reason)
-        self.skipped[key] += 1
+        counter[key] += 1
         self.examples.setdefault(
             key, f"{topic} at t={stamp_s:.9f}: {reason}{(' (' + detail + ')') if detail else ''}"
         )
+
+    def bad_messages(self, topic: str) -> tuple[int, int]:
+        """(skipped, repaired) messages of ``topic``."""
+
+        def of_topic(counter: Counter) -> int:
+            return sum(count for (name, _), count in counter.items() if name == topic)
+
+        return of_topic(self.skipped), of_topic(self.repaired)
 
     def trim(self, topic: str, stamp_s: float, time_base: TimeBase) -> None:
         """Count a message stamped outside ``time_base`` (before its start or after its end)."""
@@ -95,6 +157,10 @@ class ReadReport:
         messages trimmed to the common time base, then topics read short of their index."""
         lines = [
             f"skipped {count} x {self.examples[key]}" for key, count in sorted(self.skipped.items())
+        ]
+        lines += [
+            f"repaired {count} x {self.examples[key]}"
+            for key, count in sorted(self.repaired.items())
         ]
         lines += [
             f"trimmed {count} x {topic} at t={first:.9f}..{last:.9f}: {side} {bound}"
@@ -314,11 +380,18 @@ def iter_messages(
     start_ns: int | None = None,
     stop_ns: int | None = None,
     wanted: Callable[[str], bool] | None = None,
+    report: ReadReport | None = None,
 ) -> Iterator[tuple[str, str, float, object]]:
     """``(topic, type, stamp [s], message)`` in log order, of log times in
     ``[start_ns, stop_ns)`` when given, and only of topics ``wanted(topic)`` accepts at the
     time (the others are passed over undecoded); rosbags failures -> ``InputError`` naming
-    the file, the topic and the time of the last good message."""
+    the file, the topic and the time of the last good message.
+
+    With a ``report``, every message read is counted in ``report.messages``, and a message
+    that does not deserialize, or whose stamp jumps by more than ``STAMP_JUMP_S`` against
+    the record time (module docstring), is skipped and counted there instead of yielded;
+    without one, the first is an ``InputError`` and the second is yielded."""
+    clock_offsets: dict[str, float] = {}  # stamp - record time of each topic's first message
     connections = [connection for connection in reader.connections if connection.topic in topics]
     if not connections:
         return
@@ -334,17 +407,35 @@ def iter_messages(
                 f"{path}: unreadable after {last} ({type(error).__name__}: {error})"
             ) from None
         connection, log_ns, raw = item
-        if wanted is not None and not wanted(connection.topic):
+        topic = connection.topic
+        if wanted is not None and not wanted(topic):
             continue
+        if report is not None:
+            report.messages[topic] += 1
         try:
             message = reader.deserialize(raw, connection.msgtype)
         except Exception as error:
-            raise InputError(
-                f"{path}: {connection.topic} at log time {log_ns * 1e-9:.9f}: cannot deserialize {connection.msgtype} ({type(error).__name__}: {error})"
-            ) from None
+            if report is None:
+                raise InputError(
+                    f"{path}: {topic} at log time {log_ns * 1e-9:.9f}: cannot deserialize {connection.msgtype} ({type(error).__name__}: {error})"
+                ) from None
+            detail = f"{type(error).__name__}: {error}"
+            report.skip(topic, "cannot deserialize the message", log_ns * 1e-9, detail)
+            continue
         stamp = stamp_seconds(message, log_ns)
-        last = f"{connection.topic} at t={stamp:.9f}"
-        yield connection.topic, connection.msgtype, stamp, message
+        if report is not None:
+            offset = stamp - log_ns * 1e-9
+            jump = offset - clock_offsets.setdefault(topic, offset)
+            if abs(jump) > STAMP_JUMP_S:
+                report.skip(
+                    topic,
+                    f"header stamp more than {STAMP_JUMP_S:g} s off the record time",
+                    log_ns * 1e-9,
+                    f"stamp {stamp:.9f}, {jump:+.3g} s against the topic's first message",
+                )
+                continue
+        last = f"{topic} at t={stamp:.9f}"
+        yield topic, connection.msgtype, stamp, message
 
 
 def _vector(v) -> np.ndarray:
@@ -365,6 +456,7 @@ class ReadSettings:
     base to trim to, if any."""
 
     time_unit: str = "auto"
+    max_point_time_s: float = ABSOLUTE_TIME_S  # points timed further from the stamp dropped
     # point_times=azimuth: the sweep [s] over which clouds without times are timed by azimuth
     azimuth_sweep_s: float | None = None
     lidar_to_body: np.ndarray | None = None  # (4, 4) extrinsic applied to every cloud
@@ -385,15 +477,25 @@ def convert(
     settings: ReadSettings,
     report: ReadReport,
 ) -> Measurement | None:
-    """One message -> measurement, or None (skipped and counted) for an empty cloud, NaN IMU
-    sample or GPS without fix. ``InputError`` for a cloud without x/y/z."""
+    """One message -> measurement, or None (skipped and counted) for an empty or malformed
+    cloud, an implausible IMU sample or GPS fix, GPS without fix (module docstring).
+    ``InputError`` for a cloud without x/y/z or with coordinates that are not floats."""
     where = f"{path}, topic {topic}, t={stamp:.9f}"
     if msgtype == POINTCLOUD2:
-        cloud = decode_pointcloud2(message, stamp, where, settings.time_unit)
-        report.nonfinite_points += cloud.nonfinite
-        if cloud.points.shape[0] == 0:
-            report.skip(topic, "empty cloud (no finite points)", stamp)
+        try:
+            cloud = decode_pointcloud2(
+                message, stamp, where, settings.time_unit, settings.max_point_time_s
+            )
+        except MalformedCloud as error:
+            report.skip(topic, "malformed PointCloud2", stamp, error.problem)
             return None
+        report.nonfinite_points += cloud.nonfinite
+        problems = "; ".join(cloud.problems)
+        if cloud.points.shape[0] == 0:
+            report.skip(topic, "empty cloud (no finite points)", stamp, problems)
+            return None
+        if problems:
+            report.repair(topic, "implausible points dropped", stamp, problems)
         points = cloud.points
         times = point_times_for(points, cloud.point_times, settings.azimuth_sweep_s, where)
         if settings.lidar_to_body is not None:  # after the azimuths: they are the lidar's
@@ -404,11 +506,26 @@ def convert(
         if not (np.all(np.isfinite(gyro)) and np.all(np.isfinite(accel))):
             report.skip(topic, "non-finite IMU sample", stamp)
             return None
+        with np.errstate(over="ignore"):  # a corrupted 1e300 overflows to inf: still caught
+            rate, specific_force = float(np.linalg.norm(gyro)), float(np.linalg.norm(accel))
+        if rate > MAX_GYRO_RAD_S or specific_force > MAX_ACCEL_M_S2:
+            report.skip(
+                topic,
+                f"implausible IMU sample (|gyro| over {MAX_GYRO_RAD_S:g} rad/s or |accel| over "
+                f"{MAX_ACCEL_M_S2:g} m/s^2)",
+                stamp,
+                f"|gyro| {rate:.3g} rad/s, |accel| {specific_force:.3g} m/s^2",
+            )
+            return None
         return ImuSample(t=stamp, gyro=gyro, accel=accel)
     if msgtype == NAVSATFIX:
         fix = np.array([[message.latitude, message.longitude, message.altitude]], dtype=float)
         if message.status.status < 0 or not np.all(np.isfinite(fix)) or settings.gps_origin is None:
             report.skip(topic, "GPS without fix", stamp)
+            return None
+        if abs(fix[0, 0]) > 90.0 or abs(fix[0, 1]) > 180.0:
+            detail = f"latitude {fix[0, 0]:.9g}, longitude {fix[0, 1]:.9g}"
+            report.skip(topic, "GPS fix off the globe", stamp, detail)
             return None
         covariance = np.asarray(message.position_covariance, dtype=float).reshape(3, 3)
         if (
@@ -425,9 +542,11 @@ def convert(
 
 def first_gps_origin(reader, path: Path, topic: str) -> tuple[float, float, float] | None:
     """Latitude, longitude, altitude of the first valid fix (the ENU origin), or None."""
-    for _, _, _, message in iter_messages(reader, path, [topic]):
+    # broken messages are passed over here: the stream counts them where it meets them
+    for _, _, _, message in iter_messages(reader, path, [topic], report=ReadReport()):
         values = (float(message.latitude), float(message.longitude), float(message.altitude))
-        if message.status.status >= 0 and np.all(np.isfinite(values)):
+        on_globe = abs(values[0]) <= 90.0 and abs(values[1]) <= 180.0
+        if message.status.status >= 0 and np.all(np.isfinite(values)) and on_globe:
             return values
     return None
 
@@ -436,18 +555,35 @@ def read_ground_truth(
     path: Path, topic: str, report: ReadReport
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All poses of a ground-truth topic: t (N,), positions (N, 3), quaternions wxyz (N, 4),
-    stamp-ordered; backwards or non-finite poses skipped and counted."""
+    stamp-ordered; backwards, non-finite or implausible poses (module docstring) skipped and
+    counted."""
     times, positions, quats = [], [], []
     with open_bag(path) as reader:
-        for _, msgtype, stamp, message in iter_messages(reader, path, [topic]):
-            report.messages[topic] += 1
+        for _, msgtype, stamp, message in iter_messages(reader, path, [topic], report=report):
             position, quat = pose_of(message, msgtype)
-            norm = np.linalg.norm(quat)
+            with np.errstate(over="ignore"):  # a corrupted 1e300 overflows to inf: skipped
+                norm = np.linalg.norm(quat)
             if not (np.all(np.isfinite(position)) and np.isfinite(norm) and norm > 1e-9):
                 report.skip(topic, "non-finite pose", stamp)
                 continue
             if times and stamp <= times[-1]:
                 report.skip(topic, "stamp not after the previous one", stamp)
+                continue
+            if abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE:
+                report.skip(topic, "orientation not a unit quaternion", stamp, f"norm {norm:.6g}")
+                continue
+            if np.max(np.abs(position)) > MAX_POSITION_M:
+                report.skip(topic, f"position beyond {MAX_POSITION_M:g} m", stamp)
+                continue
+            with np.errstate(over="ignore"):
+                step_m = float(np.linalg.norm(position - positions[-1])) if times else 0.0
+            if times and step_m > MAX_TRUTH_SPEED_M_S * (stamp - times[-1]):
+                report.skip(
+                    topic,
+                    f"pose jumps faster than {MAX_TRUTH_SPEED_M_S:g} m/s",
+                    stamp,
+                    f"{step_m:.3g} m in {stamp - times[-1]:.3g} s",
+                )
                 continue
             times.append(stamp)
             positions.append(position)
@@ -464,8 +600,7 @@ def read_stream(
     last_on_topic: dict[str, float] = {}
     emitted = -np.inf
     with open_bag(path) as reader:
-        for topic, msgtype, stamp, message in iter_messages(reader, path, topics):
-            report.messages[topic] += 1
+        for topic, msgtype, stamp, message in iter_messages(reader, path, topics, report=report):
             if stamp <= last_on_topic.get(topic, -np.inf):
                 report.skip(
                     topic,
@@ -511,11 +646,27 @@ def lidar_sweep_period(reader, path: Path, topic: str, frames: int = 21) -> floa
     """One sweep of ``topic`` [s] for ``point_times=azimuth``: the median interval of the
     header stamps of its first ``frames`` messages (``InputError`` when they give none)."""
     stamps = []
-    for _, _, stamp, _ in iter_messages(reader, path, [topic]):
+    for _, _, stamp, _ in iter_messages(reader, path, [topic], report=ReadReport()):
         stamps.append(stamp)
         if len(stamps) >= frames:
             break
     return sweep_period(np.array(stamps), f"{path}, topic {topic}")
+
+
+POINT_TIME_SWEEPS = 1.5
+"""Per-point times further from their cloud's stamp than this many sweeps are dropped: a
+sweep's points lie within one sweep of its stamp (before or after it, as drivers stamp its
+start or its end); half a sweep more leaves room for a driver's jitter."""
+
+
+def max_point_time(reader, path: Path, topic: str) -> float:
+    """How far from its stamp [s] a point of ``topic`` may be timed: ``POINT_TIME_SWEEPS``
+    sweeps (``lidar_sweep_period``), at most ``ABSOLUTE_TIME_S``; ``ABSOLUTE_TIME_S`` when
+    the topic gives no sweep (a single cloud)."""
+    try:
+        return min(POINT_TIME_SWEEPS * lidar_sweep_period(reader, path, topic), ABSOLUTE_TIME_S)
+    except InputError:
+        return ABSOLUTE_TIME_S
 
 
 def topic_spans(
@@ -524,6 +675,7 @@ def topic_spans(
     topics: list[str],
     time_unit: str = "auto",
     azimuth_sweep_s: float | None = None,
+    max_point_time_s: float = ABSOLUTE_TIME_S,
 ) -> dict[str, tuple[float, float]]:
     """``{topic: (first, last)}`` header stamps [s] of each topic that has messages, read
     from the two ends of the bag only: the first message of each topic in log order (what
@@ -543,8 +695,9 @@ def topic_spans(
     if not present:
         return {}
     first: dict[str, float] = {}
+    # broken messages are passed over here (a throwaway report): the stream counts them
     for topic, _, stamp, _ in iter_messages(
-        reader, path, present, wanted=lambda topic: topic not in first
+        reader, path, present, wanted=lambda topic: topic not in first, report=ReadReport()
     ):
         first[topic] = stamp
         if len(first) == len(present):
@@ -554,7 +707,9 @@ def topic_spans(
     while True:
         start_ns = max(begin_ns, end_ns - window_ns)
         last: dict[str, tuple[float, object, str]] = {}
-        for topic, msgtype, stamp, message in iter_messages(reader, path, present, start_ns):
+        for topic, msgtype, stamp, message in iter_messages(
+            reader, path, present, start_ns, report=ReadReport()
+        ):
             if topic not in last or stamp > last[topic][0]:
                 last[topic] = (stamp, message, msgtype)
         if len(last) == len(present) or start_ns <= begin_ns:
@@ -568,7 +723,7 @@ def topic_spans(
         if msgtype == POINTCLOUD2:
             where = f"{path}, topic {topic}, t={stamp:.9f}"
             try:
-                cloud = decode_pointcloud2(message, stamp, where, time_unit)
+                cloud = decode_pointcloud2(message, stamp, where, time_unit, max_point_time_s)
                 times = point_times_for(cloud.points, cloud.point_times, azimuth_sweep_s, where)
             except InputError:  # the stream reports a broken cloud where it meets it
                 times = None
@@ -586,6 +741,7 @@ def start_at_first_pose(
     time_unit: str = "auto",
     deskew: bool = True,
     azimuth_sweep_s: float | None = None,
+    max_point_time_s: float = ABSOLUTE_TIME_S,
 ) -> TimeBase:
     """``time_base`` starting at the front end's first pose: where the first kept sweep ends
     when it is deskewed (``datasets.lidar.kiss_icp_odometry``: a frame's pose is at its
@@ -600,15 +756,21 @@ def start_at_first_pose(
     stamp. Without deskewing (or clouds without per-point times) the start is the first
     kept cloud's stamp, which is later than the common start when another stream sets
     that start or the first clouds are empty."""
-    for topic, msgtype, stamp, message in iter_messages(reader, path, [lidar_topic]):
+    passed_over: dict[str, list] = {}  # why clouds gave no pose: [count, the first's detail]
+    for topic, msgtype, stamp, message in iter_messages(
+        reader, path, [lidar_topic], report=ReadReport()
+    ):
         if msgtype != POINTCLOUD2 or stamp < time_base.start_s:
             continue
         where = f"{path}, topic {topic}, t={stamp:.9f}"
         try:
-            cloud = decode_pointcloud2(message, stamp, where, time_unit)
-        except InputError:  # the stream reports a broken cloud where it meets it
+            cloud = decode_pointcloud2(message, stamp, where, time_unit, max_point_time_s)
+        except MalformedCloud as error:  # the stream counts a broken cloud where it meets it
+            passed_over.setdefault("malformed", [0, error.problem])[0] += 1
             continue
         if not len(cloud.points):
+            detail = "; ".join(cloud.problems) or "no finite point"
+            passed_over.setdefault("without a plausible point", [0, detail])[0] += 1
             continue
         times = point_times_for(cloud.points, cloud.point_times, azimuth_sweep_s, where)
         end = pose_time(stamp, times, deskew)
@@ -625,23 +787,30 @@ def start_at_first_pose(
             spans=time_base.spans,
             first_cloud_s=stamp,
         )
+    why = "; ".join(
+        f"{count} {reason}, the first: {detail}" for reason, (count, detail) in passed_over.items()
+    )
     raise InputError(
         f"{path}: no cloud on {lidar_topic} sweeps inside the common time base "
-        f"t={time_base.start_s:.9f}..{time_base.end_s:.9f}"
+        f"t={time_base.start_s:.9f}..{time_base.end_s:.9f}" + (f" ({why})" if why else "")
     )
 
 
 def check_skips(path: Path, topics: list[str], max_fraction: float, report: ReadReport) -> None:
-    """``InputError`` when more than ``max_fraction`` of a topic's messages were skipped
-    (NaN IMU samples, non-finite poses, empty clouds, ...): a few skips are counted
-    warnings, most of a topic is a broken recording, not a quirk."""
+    """``InputError`` when more than ``max_fraction`` of a topic's messages were skipped or
+    repaired (NaN IMU samples, non-finite poses, empty clouds, implausible values, ...): a
+    few are counted warnings, most of a topic is a broken recording, not a quirk."""
     for topic in topics:
-        skipped = sum(count for (name, _), count in report.skipped.items() if name == topic)
+        skipped, repaired = report.bad_messages(topic)
         read = int(report.messages[topic])
-        if skipped and skipped > max_fraction * read:
-            first = next(report.examples[key] for key in sorted(report.skipped) if key[0] == topic)
+        if skipped + repaired > max_fraction * read:
+            what = " or ".join(
+                word for word, count in (("skipped", skipped), ("repaired", repaired)) if count
+            )
+            keys = sorted(key for key in {*report.skipped, *report.repaired} if key[0] == topic)
             raise InputError(
-                f"{path}: {skipped} of the {read} messages on {topic} skipped (first: {first}); "
+                f"{path}: {skipped + repaired} of the {read} messages on {topic} {what} "
+                f"(first: {report.examples[keys[0]]}); "
                 f"more than max_skipped_fraction={max_fraction} (raise it to accept)"
             )
 

@@ -37,6 +37,8 @@ import numpy as np
 from pydantic import ConfigDict, Field
 
 from datasets.bags.reader import (
+    MAX_ACCEL_M_S2,
+    MAX_GYRO_RAD_S,
     ReadReport,
     ReadSettings,
     check_skips,
@@ -45,6 +47,7 @@ from datasets.bags.reader import (
     first_gps_origin,
     iter_messages,
     lidar_sweep_period,
+    max_point_time,
     open_bag,
     read_ground_truth,
     read_stream,
@@ -237,13 +240,16 @@ def _imu_noise(
     info = reader.topics[topic]
     duration = (reader.end_time - reader.start_time) * 1e-9
     rate = info.msgcount / duration if duration > 0 and info.msgcount > 1 else None
-    for _, _, _, message in iter_messages(reader, path, [topic]):
+    # a message that does not decode is passed over here: the stream counts it
+    for _, _, _, message in iter_messages(reader, path, [topic], report=ReadReport()):
         gyro_var = float(np.asarray(message.angular_velocity_covariance)[0])
         accel_var = float(np.asarray(message.linear_acceleration_covariance)[0])
         if rate is None:
             return None, None, None
-        gyro = np.sqrt(gyro_var / rate) if gyro_var > 0 else None
-        accel = np.sqrt(accel_var / rate) if accel_var > 0 else None
+        # used only when positive and below the square of the largest plausible reading: a
+        # corrupted first message would otherwise set every estimator's noise
+        gyro = np.sqrt(gyro_var / rate) if 0 < gyro_var <= MAX_GYRO_RAD_S**2 else None
+        accel = np.sqrt(accel_var / rate) if 0 < accel_var <= MAX_ACCEL_M_S2**2 else None
         return rate, gyro, accel
     return rate, None, None
 
@@ -294,12 +300,14 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             if settings.point_times == "azimuth"
             else None
         )
+        max_point_time_s = max_point_time(reader, path, topics.lidar)
         spans = topic_spans(
             reader,
             path,
             [t for t in (topics.lidar, imu_topic) if t],
             settings.point_time_unit,
             azimuth_sweep_s,
+            max_point_time_s,
         )
     load_report = ReadReport()
     gt = (
@@ -326,12 +334,14 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
                 settings.point_time_unit,
                 deskew=settings.kiss.deskew,
                 azimuth_sweep_s=azimuth_sweep_s,
+                max_point_time_s=max_point_time_s,
             )
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
     ground_truth = _ground_truth(*gt, truth)
     read_settings = ReadSettings(
         time_unit=settings.point_time_unit,
+        max_point_time_s=max_point_time_s,
         azimuth_sweep_s=azimuth_sweep_s,
         gps_origin=origin,
         gps_sigma_m=settings.gps_sigma_m,

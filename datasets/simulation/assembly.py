@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from datasets.errors import InputError
 from datasets.measurements import (
     GyroSample,
     ImuSample,
@@ -33,6 +34,56 @@ from datasets.trajectory import Trajectory
 TIME_DECIMALS = 9
 """Sample times are k / rate rounded to nanoseconds, so equal times of different sensors
 compare equal and merge in a fixed order."""
+
+MEMORY_BOUND_BYTES = 2 * 1024**3
+"""The most one simulated sequence may hold in memory: 2 GiB (``check_size``)."""
+SAMPLE_BYTES = 1024
+"""Memory of one inertial (or odometry) sample: its truth (pose, velocity, biases), its
+measurement arrays and the measurement object each pass over the stream builds; measured
+with tracemalloc at about 760 B (3-D IMU) and 990 B (planar gyro with odometry)."""
+SCAN_BYTES = 2048
+"""Memory of one landmark scan before its sightings (measured: about 1.8 KB)."""
+SIGHTING_BYTES = 128
+"""Memory of one landmark in one scan: position, covariance, id (measured: about 100 B)."""
+
+
+@dataclass(frozen=True)
+class SizedStream:
+    """A stream sampled at ``rate_hz`` for the length of a sequence, each sample costing
+    ``sample_bytes`` of memory; ``options`` says which options set it (``imu_rate_hz=100``)."""
+
+    options: str
+    rate_hz: float
+    sample_bytes: float
+
+
+def check_size(
+    context: str,
+    duration_s: float,
+    duration: str,
+    streams: list[SizedStream],
+    limited: str = "duration_s",
+    bound_bytes: float = MEMORY_BOUND_BYTES,
+    bounded: str = "a simulated sequence may hold in memory",
+) -> None:
+    """``InputError`` when ``streams`` over ``duration_s`` would need more than
+    ``bound_bytes`` (``MEMORY_BOUND_BYTES``, 2 GiB, unless given) of simulated data, naming
+    ``duration`` (the option and its value, e.g. ``duration_s=1e+07``), the rates and what a
+    sample costs, the bound, and the longest ``limited`` these rates allow. The bound is
+    what the samples cost (``SAMPLE_BYTES``, ``SCAN_BYTES``, ``SIGHTING_BYTES``) times their
+    number, ``duration_s * rate_hz`` each, so it is checked before anything is allocated;
+    an infinite or NaN duration fails it too."""
+    per_second = sum(stream.rate_hz * stream.sample_bytes for stream in streams)
+    needed = duration_s * per_second
+    if needed <= bound_bytes:  # False for inf and NaN
+        return
+    size = f"about {needed / 1024**3:.4g} GiB" if np.isfinite(needed) else "unbounded memory"
+    costs = "; ".join(f"{stream.options}: {stream.sample_bytes:g} B a sample" for stream in streams)
+    raise InputError(
+        f"{context}: {duration} needs {size} of simulated data ({costs}), above the "
+        f"{bound_bytes / 1024**3:g} GiB {bounded}; at these rates {limited} can be at most "
+        f"{bound_bytes / per_second:.6g} s"
+    )
 
 
 def sample_times(duration_s: float, rate_hz: float) -> np.ndarray:

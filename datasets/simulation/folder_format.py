@@ -90,8 +90,10 @@ def _json_ready(value: Any) -> Any:
 def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
     """Write ``sequence`` into ``out_dir`` (created if needed); returns the folder path.
 
-    Every file is written atomically. Raises ``InputError`` for measurement kinds the
-    format does not hold.
+    Every file is written atomically, ``sequence.json`` (what makes the folder a sequence)
+    removed first and written last; when a write fails (a full disk) the files this call wrote are removed again, so
+    no partial sequence is left, and the error names the file. Raises ``InputError`` for
+    measurement kinds the format does not hold.
     """
     folder = Path(out_dir)
     d = sequence.dimension
@@ -187,8 +189,25 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
     files["README.md"] = FOLDER_README.format(
         format_name=FORMAT_NAME, format_version=FORMAT_VERSION
     )
-    for name, text in files.items():
-        write_atomic(folder / name, text)
+    # sequence.json goes first and comes back last: a folder that has one is complete, even
+    # after a failed rewrite of an earlier sequence
+    (folder / "sequence.json").unlink(missing_ok=True)
+    written: list[Path] = []
+    try:
+        for name in sorted(files, key=lambda name: name == "sequence.json"):
+            target = folder / name
+            write_atomic(target, files[name])
+            written.append(target)
+    except BaseException as error:
+        for path in written:
+            path.unlink(missing_ok=True)
+        for sub in {path.parent for path in written} - {folder}:
+            if sub.is_dir() and not any(sub.iterdir()):  # ground_truth/, made by this call
+                sub.rmdir()
+        if isinstance(error, OSError) and error.filename is None:
+            # a failed write() names no file: name the one being written
+            raise OSError(error.errno, error.strerror, str(target)) from error
+        raise
     return folder
 
 

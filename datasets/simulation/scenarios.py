@@ -28,9 +28,14 @@ from datasets.options import describe_model, parse_options
 from datasets.rotations import wrap_angle
 from datasets.sequence import NoiseSpec, Sequence
 from datasets.simulation.assembly import (
+    SAMPLE_BYTES,
+    SCAN_BYTES,
+    SIGHTING_BYTES,
     OdometrySeries,
     SimulatedData,
+    SizedStream,
     build_sequence,
+    check_size,
     sample_times,
 )
 from datasets.simulation.floor_plan import ring_corridor_building
@@ -258,6 +263,24 @@ def _metadata(scenario: str, seed: int, options: BaseModel, **extra: object) -> 
     }
 
 
+def _duration_text(options: _CommonOptions, duration_s: float, default: str) -> str:
+    """How the sequence's length was chosen, for ``check_size``'s message: the option as
+    given, or the scenario's default and what it follows from."""
+    if options.duration_s is not None:
+        return f"duration_s={options.duration_s:g}"
+    return f"duration_s (default {duration_s:.6g} s: {default})"
+
+
+def _scan_stream(options: _CommonOptions, landmarks: int, count_option: str) -> SizedStream:
+    """The landmark scans as ``check_size`` counts them: every landmark in every scan (the
+    most the field of view can let through)."""
+    return SizedStream(
+        f"landmark_rate_hz={options.landmark_rate_hz:g} and {count_option}",
+        options.landmark_rate_hz,
+        SCAN_BYTES + landmarks * SIGHTING_BYTES,
+    )
+
+
 def _kitti_inertial_noise(options: _SpatialOptions) -> InertialNoise:
     """IMU densities: the options' where given, else the KITTI-equivalent ones read from
     gtsam's Data/KittiEquivBiasedImu_metadata.txt (Aghili's paper states no IMU grade)."""
@@ -331,8 +354,18 @@ def _simulate_spatial(
     sigmas: np.ndarray,
     options: _SpatialOptions,
     seed: int,
+    duration: str,
     **extra_metadata: object,
 ) -> Sequence:
+    check_size(
+        f"sim:{scenario} --data",
+        duration_s,
+        duration,
+        [
+            SizedStream(f"imu_rate_hz={options.imu_rate_hz:g}", options.imu_rate_hz, SAMPLE_BYTES),
+            _scan_stream(options, len(landmarks), f"{len(landmarks)} landmarks"),
+        ],
+    )
     generators = _generators(seed)
     drawn, stated = _noise_factors(options.noise_scale)
     nominal = _kitti_inertial_noise(options)
@@ -412,6 +445,7 @@ def aghili_rover(seed: int, options: AghiliRoverOptions) -> Sequence:
         sigmas,
         options,
         seed,
+        _duration_text(options, duration, f"one lap at speed_m_s={options.speed_m_s:g}"),
         landmark_sigmas_m=[float(value) for value in sigmas],
         lap_duration_s=float(motion.period_s),
     )
@@ -432,8 +466,9 @@ def circle(seed: int, options: CircleOptions) -> Sequence:
         ]
     )
     sigmas = np.full(options.landmark_count, options.landmark_sigma_m)
+    duration = float(options.duration_s)
     return _simulate_spatial(
-        "circle", motion, float(options.duration_s), landmarks, sigmas, options, seed
+        "circle", motion, duration, landmarks, sigmas, options, seed, f"duration_s={duration:g}"
     )
 
 
@@ -452,8 +487,9 @@ def static(seed: int, options: StaticOptions) -> Sequence:
         ]
     )
     sigmas = np.full(options.landmark_count, options.landmark_sigma_m)
+    duration = float(options.duration_s)
     return _simulate_spatial(
-        "static", motion, float(options.duration_s), landmarks, sigmas, options, seed
+        "static", motion, duration, landmarks, sigmas, options, seed, f"duration_s={duration:g}"
     )
 
 
@@ -527,6 +563,41 @@ def relative_pose_odometry(
     )
 
 
+MOTION_GRID_BYTES = 64
+"""Memory per point of the random speed and lateral drift profiles (a few float arrays on
+their ``RandomSpeed.GRID_S`` grid)."""
+
+
+def _check_loop_size(options: GuerreiroLoopOptions, walk: bool, corners: int) -> None:
+    """``check_size`` for ``guerreiro_loop`` before anything is drawn: the random speed and
+    drift profiles span the whole path (``duration_s`` for a pure walk), the samples the
+    sequence."""
+    context = "sim:guerreiro-loop --data"
+    path_s = LOOP_PATH_LENGTH_M / options.mean_speed_m_s
+    default = f"the {LOOP_PATH_LENGTH_M:g} m path at mean_speed_m_s={options.mean_speed_m_s:g}"
+    if options.speed_profile == "random" or options.lateral_walk_m_s_sqrt_s > 0.0:
+        span = options.duration_s if walk and options.duration_s is not None else path_s
+        grid_hz = 1.0 / RandomSpeed.GRID_S
+        check_size(
+            context,
+            span,
+            f"a random profile of {span:.6g} s ({default})",
+            [SizedStream(f"its {grid_hz:g} Hz grid", grid_hz, MOTION_GRID_BYTES)],
+            limited="the profile",
+        )
+    duration = options.duration_s if options.duration_s is not None else path_s
+    per_gyro = SAMPLE_BYTES * (2 if options.odometry else 1)  # odometry at the gyro's rate
+    check_size(
+        context,
+        duration,
+        _duration_text(options, duration, default),
+        [
+            SizedStream(f"gyro_rate_hz={options.gyro_rate_hz:g}", options.gyro_rate_hz, per_gyro),
+            _scan_stream(options, corners, f"{corners} corners"),
+        ],
+    )
+
+
 def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     """Guerreiro, Batista, Silvestre, Oliveira, "Globally Asymptotically Stable Sensor-Based
     SLAM", section V: a planar vehicle flies about 60 m round a ring corridor at 0.4 m/s on
@@ -547,6 +618,8 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
     generators = _generators(seed)
     random_speed = options.speed_profile == "random"
     walk = random_speed and options.speed_reversion_s is None
+    plan = ring_corridor_building(niche_depth_m=options.niche_depth_m)
+    _check_loop_size(options, walk, len(plan.corners))
     try:
         motion = guerreiro_loop_motion(
             options.mean_speed_m_s,
@@ -573,7 +646,6 @@ def guerreiro_loop(seed: int, options: GuerreiroLoopOptions) -> Sequence:
                 f"the end of the {motion.path.length_m:.0f} m path before t={duration:g} s: "
                 "shorten duration_s"
             )
-    plan = ring_corridor_building(niche_depth_m=options.niche_depth_m)
     drawn, stated = _noise_factors(options.noise_scale)
     nominal = InertialNoise(
         gyro_noise_density=options.gyro_noise_density,

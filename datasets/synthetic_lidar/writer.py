@@ -32,9 +32,11 @@ polygons, so the lidar front end can score itself.
 
 from __future__ import annotations
 
+import errno
 import heapq
 import json
 import shutil
+import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -57,6 +59,19 @@ WHEEL_TOPIC = "/wheel/odometry"
 WHEEL_SCALE_ERROR = 0.02  # wheel odometry over-reads distance by 2 %
 WHEEL_YAW_DRIFT_RAD_S = 0.01  # and its heading drifts by this rate [rad/s]
 WHEEL_NOISE_M, WHEEL_NOISE_RAD = 1e-3, 5e-4  # per-increment noise std
+# Sizes the options are held to (``check_bag_size``). One sweep is ray-cast at once, beams x
+# columns rays against every wall, so columns are bounded (twice the densest real sensor);
+# the IMU's lead adds samples the duration does not count.
+MAX_COLUMNS = 4096
+MAX_IMU_LEAD_S = 60.0
+MAX_BAG_BYTES = 2 * 1024**3
+"""The largest bag ``simulate lidar-corridor`` writes: 2 GiB (the default 8 s bag is 42 MB).
+The writer keeps an index entry per message in memory and the front end reads every sweep,
+so the bound keeps both to what a workstation holds."""
+POINT_BYTES = 32  # one point of a cloud (``_cloud_layout``)
+MESSAGE_BYTES = 1024
+"""Any message but a cloud's points, with its record and index: IMU 321 B, ground truth and
+wheel odometry 714 B, NavSatFix 125 B of payload, measured in a ROS 1 bag; rounded up."""
 
 
 class LidarBagOptions(BaseModel):
@@ -70,7 +85,12 @@ class LidarBagOptions(BaseModel):
     )
     speed_m_s: float = Field(1.5, gt=0, description="vehicle speed [m/s] (the loop is 76.4 m)")
     beams: int = Field(16, description="lidar beams: 16 or 32")
-    columns: int = Field(1024, ge=16, description="azimuth columns per revolution")
+    columns: int = Field(
+        1024,
+        ge=16,
+        le=MAX_COLUMNS,
+        description="azimuth columns per revolution (real sensors: 512 to 2048)",
+    )
     lidar_rate_hz: float = Field(10.0, gt=0, description="lidar revolutions per second")
     range_sigma_m: float = Field(0.01, ge=0, description="lidar range noise std [m]")
     imu_rate_hz: float = Field(200.0, gt=0, description="IMU rate [Hz]")
@@ -81,6 +101,7 @@ class LidarBagOptions(BaseModel):
     imu_lead_s: float = Field(
         0.0,
         ge=0,
+        le=MAX_IMU_LEAD_S,
         description="the IMU starts this long before the first lidar sweep [s] (extra samples "
         "at negative times at imu_rate_hz; lidar and ground-truth timing unchanged)",
     )
@@ -101,6 +122,37 @@ class LidarBagOptions(BaseModel):
         "auto",
         pattern="^(auto|time|t|timestamp|offset_time|none)$",
         description="per-point time field (auto: time for ros1, t for ros2)",
+    )
+
+
+def check_bag_size(settings: LidarBagOptions) -> None:
+    """``InputError`` naming the options when the bag they describe would exceed
+    ``MAX_BAG_BYTES`` (2 GiB): sweeps of beams x columns points (``POINT_BYTES`` each) plus
+    one ``MESSAGE_BYTES`` per message of every topic, ``duration_s * rate`` messages each
+    (``datasets.simulation.assembly.check_size``, which states the bound)."""
+    from datasets.simulation.assembly import SizedStream, check_size
+
+    lidar = settings.lidar_rate_hz
+    streams = [
+        SizedStream(
+            f"lidar_rate_hz={lidar:g} with beams={settings.beams}, columns={settings.columns}",
+            lidar,
+            settings.beams * settings.columns * POINT_BYTES + MESSAGE_BYTES,
+        ),
+        SizedStream(f"imu_rate_hz={settings.imu_rate_hz:g}", settings.imu_rate_hz, MESSAGE_BYTES),
+        SizedStream(f"gt_rate_hz={settings.gt_rate_hz:g}", settings.gt_rate_hz, MESSAGE_BYTES),
+    ]
+    for name in ("gps_rate_hz", "wheel_odometry_rate_hz"):
+        rate = getattr(settings, name)
+        if rate > 0:
+            streams.append(SizedStream(f"{name}={rate:g}", rate, MESSAGE_BYTES))
+    check_size(
+        "simulate lidar-corridor --data",
+        settings.duration_s,
+        f"duration_s={settings.duration_s:g}",
+        streams,
+        bound_bytes=MAX_BAG_BYTES,
+        bounded="a simulated bag may take",
     )
 
 
@@ -296,13 +348,12 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
         fmt: ``ros1`` or ``ros2``.
         options: ``LidarBagOptions`` as ``key=value`` strings.
     """
-    from rosbags.typesys import Stores, get_typestore
-
     settings = parse_options(LidarBagOptions, options, "simulate lidar-corridor")
     if fmt not in ("ros1", "ros2"):
         raise InputError(f"simulate lidar-corridor: --format must be ros1 or ros2, got '{fmt}'")
     if settings.beams not in (16, 32):
         raise InputError(f"simulate lidar-corridor: beams must be 16 or 32, got {settings.beams}")
+    check_bag_size(settings)
     out = Path(out)
     if fmt == "ros1" and out.suffix != ".bag":
         out = out.with_name(out.name + ".bag")
@@ -310,6 +361,40 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
         raise InputError(f"{out}: exists already; choose a new path")
     out.parent.mkdir(parents=True, exist_ok=True)
     ros1 = fmt == "ros1"
+    # Written under a temporary name and renamed when complete: an interrupted run never
+    # leaves a bag that looks whole, and a failed one (a full disk) leaves nothing behind.
+    temp = out.parent / f".{out.name}.partial"
+    _remove(temp)
+    try:
+        world, model = _write_messages(temp, out, seed, ros1, settings)
+        temp.rename(out)
+        write_sidecar(out, world, model, settings)
+    except BaseException as error:
+        _remove(temp)
+        _remove(out)  # it did not exist before this call (checked above)
+        if isinstance(error, sqlite3.Error):  # the ROS 2 storage's own report of a full disk
+            raise OSError(errno.EIO, f"cannot write the bag ({error})", str(out)) from error
+        if isinstance(error, OSError) and error.filename is None:
+            # a failed write() names no file: name the bag the user asked for
+            raise OSError(error.errno, error.strerror, str(out)) from error
+        raise
+    return out
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)
+
+
+def _write_messages(
+    temp: Path, out: Path, seed: int, ros1: bool, settings: LidarBagOptions
+) -> tuple[World, LidarModel]:
+    """Write every message of the bag at ``temp`` (named for ``out`` inside, where ROS 2
+    names files after the folder); return the world and lidar model it shows."""
+    from rosbags.typesys import Stores, get_typestore
+
     typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     time_field = settings.time_field if settings.time_field != "auto" else ("time" if ros1 else "t")
     model = LidarModel(
@@ -324,12 +409,6 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
     types = typestore.types
     dtype = _cloud_layout(time_field)
 
-    # Written under a temporary name and renamed when complete: an interrupted run never
-    # leaves a bag that looks whole.
-    temp = out.parent / f".{out.name}.partial"
-    if temp.is_dir():
-        shutil.rmtree(temp)
-    temp.unlink(missing_ok=True)
     if ros1:
         from rosbags.rosbag1 import Writer as Writer1
 
@@ -469,9 +548,7 @@ def write_lidar_bag(out: Path, seed: int, fmt: str, options: dict[str, str]) -> 
                 stored.rename(temp / stored.name.replace(temp.name, out.name, 1))
         metadata = temp / "metadata.yaml"
         metadata.write_text(metadata.read_text().replace(temp.name, out.name))
-    temp.rename(out)
-    write_sidecar(out, world, model, settings)
-    return out
+    return world, model
 
 
 def describe() -> list[str]:

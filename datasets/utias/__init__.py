@@ -51,10 +51,11 @@ Quirks handled (all counted in ``Sequence.metadata['counts']``):
   sit at each other's surveyed position), so another MRCLAM folder gets only the swaps its
   own data show; ``fix_swapped_labels=false`` keeps the file's labels. The metadata says
   which pairs were swapped.
-- *Vicon position glitches*: a position that jumps away faster than
-  ``max_vicon_speed_m_s`` is dropped from the truth (so no estimate is scored against it)
-  until the track returns; counted (``vicon_position_glitch_samples``) and timed
-  (``excluded_truth_s``).
+- *Vicon failures*: ``datasets.truth_quality.assess_truth`` judges the Vicon (headings
+  repaired) against its own motion and the raw odometry: dropouts, freezes, jumps, wrong
+  tracks between a jump away and back, headings against the direction of travel, motion
+  the odometry contradicts. Its intervals are ``GroundTruth.excluded`` (scored nowhere,
+  listed in the metadata's ``excluded_truth`` and warned), and no calibration fits on them.
 
 Fitted at load (``datasets.utias.calibration``; ``calibration`` option): the odometry
 calibration above, the odometry noise model (``odometry_noise``), the sightings'
@@ -72,7 +73,7 @@ differences of the Vicon positions (derived, not measured), the surveyed landmar
 (ids = barcodes) and the true barcode of every sighting (``scan_ids``).
 
 Modules: ``tables`` (the text files as numbers, the time base), ``recording`` (one robot's
-streams, heading and position glitches), ``sightings`` (barcodes, scans, label swaps),
+streams, heading glitches, truth quality), ``sightings`` (barcodes, scans, label swaps),
 ``calibration`` (what is fitted, from which truth), ``options``, ``loader``.
 """
 
@@ -84,7 +85,6 @@ from datasets.utias.recording import (
     read_recording,
     repair_heading_glitches,
     robots_in,
-    vicon_position_glitches,
 )
 from datasets.utias.sightings import ROBOT_SUBJECTS, detect_label_swaps
 from datasets.utias.tables import grid_times, printing_resolution, read_table
@@ -106,5 +106,4 @@ __all__ = [
     "read_table",
     "repair_heading_glitches",
     "robots_in",
-    "vicon_position_glitches",
 ]

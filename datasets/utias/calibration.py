@@ -52,7 +52,7 @@ from datasets.sighting_correlation import (
     planar_residuals,
 )
 from datasets.utias.options import UtiasOptions
-from datasets.utias.recording import Recording, read_recording, robots_in
+from datasets.utias.recording import Recording, read_recording, robot_identity, robots_in
 from datasets.utias.sightings import (
     ROBOT_SUBJECTS,
     build_scans,
@@ -99,13 +99,58 @@ class Calibration:
     warnings: tuple[str, ...] = ()
 
 
+_CACHE_LIMIT = 32
+_references: dict[tuple, Reference] = {}
+_calibrations: dict[tuple, Calibration] = {}
+
+
+def _cached(cache: dict, key: tuple, make):
+    """``cache[key]``, made once per process (a sweep loads the same folder many times,
+    and a calibration pooled over four robots costs seconds); bounded, oldest out first."""
+    if key not in cache:
+        if len(cache) >= _CACHE_LIMIT:
+            del cache[next(iter(cache))]
+        cache[key] = make()
+    return cache[key]
+
+
+def _fit_key(config: UtiasOptions) -> tuple:
+    """The options that shape a fit (every one but the run's selection and its ids)."""
+    fields = config.model_dump(exclude={"ids", "duration_s", "odometry_gap_s"})
+    return tuple(sorted((key, repr(value)) for key, value in fields.items()))
+
+
+def _survey_key(subject_of: dict[int, int], surveyed: dict[int, np.ndarray]) -> tuple:
+    return tuple(sorted(subject_of.items())), tuple(
+        (subject, tuple(np.asarray(position, float).tolist()))
+        for subject, position in sorted(surveyed.items())
+    )
+
+
 def reference_of(
     recording: Recording,
     config: UtiasOptions,
     subject_of: dict[int, int],
     surveyed: dict[int, np.ndarray],
 ) -> Reference:
-    """``recording`` as a calibration reference (the label swaps detected on its own data)."""
+    """``recording`` as a calibration reference (the label swaps detected on its own data;
+    cached per process)."""
+    key = (
+        recording.folder,
+        recording.robot,
+        recording.identity,
+        _fit_key(config),
+        _survey_key(subject_of, surveyed),
+    )
+    return _cached(_references, key, lambda: _reference_of(recording, config, subject_of, surveyed))
+
+
+def _reference_of(
+    recording: Recording,
+    config: UtiasOptions,
+    subject_of: dict[int, int],
+    surveyed: dict[int, np.ndarray],
+) -> Reference:
     span = (float(recording.odo_t[0]), float(recording.odo_t[-1]))
     scans, _, _ = build_scans(recording.sightings, recording.meas_t, span, subject_of, config)
     swaps = (
@@ -124,7 +169,32 @@ def calibrate(
     view: tuple[float | None, float | None],
 ) -> Calibration:
     """The models for a run on ``scored`` (module docstring); ``view``: the camera's field
-    of view [deg] and range [m] as the scored robot's own sightings show them."""
+    of view [deg] and range [m] as the scored robot's own sightings show them. Cached per
+    process on the recordings' files and the options that shape the fits."""
+    recording = scored.recording
+    key = (
+        recording.folder,
+        recording.robot,
+        tuple(
+            (robot, robot_identity(recording.folder, robot))
+            for robot in robots_in(recording.folder)
+        ),
+        _fit_key(config),
+        _survey_key(subject_of, surveyed),
+        view,
+    )
+    return _cached(
+        _calibrations, key, lambda: _calibrate(scored, config, subject_of, surveyed, view)
+    )
+
+
+def _calibrate(
+    scored: Reference,
+    config: UtiasOptions,
+    subject_of: dict[int, int],
+    surveyed: dict[int, np.ndarray],
+    view: tuple[float | None, float | None],
+) -> Calibration:
     source = config.calibration
     warnings: list[str] = []
     recording = scored.recording
@@ -176,7 +246,6 @@ def _recording(config: UtiasOptions, folder: Path, robot: int) -> Recording:
         config.grid_step_s,
         config.max_dropped_fraction,
         config.max_heading_rate_rad_s,
-        config.max_vicon_speed_m_s,
     )
 
 

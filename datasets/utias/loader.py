@@ -4,6 +4,7 @@ says what the stream holds, what is repaired and what is fitted)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from datasets.rotations import rot2_batch
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import BlockName, Frame, GroundTruth, LandmarkMap, StateBlock, StateHistory
 from datasets.trajectory import Trajectory
+from datasets.truth_quality import TruthInterval, excluded_mask, merged_spans
 from datasets.utias.calibration import calibrate, calibrated_odometry, reference_of
 from datasets.utias.options import UtiasOptions
 from datasets.utias.recording import read_recording, repair_heading_glitches
@@ -66,7 +68,6 @@ def load_mrclam(
         config.grid_step_s,
         config.max_dropped_fraction,
         config.max_heading_rate_rad_s,
-        config.max_vicon_speed_m_s,
     )
     counts = dict(recording.counts)
     warnings: list[str] = []
@@ -85,14 +86,14 @@ def load_mrclam(
     odometry_model = calibration.odometry_model
     odo_t, odo_values = recording.odo_t, calibrated_odometry(recording, scales)
     truth_t, truth_xy = recording.truth_t, recording.truth_xy
-    truth_heading_raw, glitches = recording.truth_heading_raw, recording.position_glitches
+    truth_heading_raw = recording.truth_heading_raw
     recording_span = (float(odo_t[0]), float(odo_t[-1]))
     if config.duration_s is not None:
         keep = odo_t <= config.duration_s
         odo_t, odo_values = odo_t[keep], odo_values[keep]
         keep = truth_t <= config.duration_s
         truth_t, truth_xy = truth_t[keep], truth_xy[keep]
-        truth_heading_raw, glitches = truth_heading_raw[keep], glitches[keep]
+        truth_heading_raw = truth_heading_raw[keep]
     if len(odo_t) < 2 or len(truth_t) < 2:
         raise InputError(
             f"{recording.odometry.path}: fewer than two odometry or ground-truth rows in the "
@@ -129,15 +130,24 @@ def load_mrclam(
         truth_heading_raw, truth_t, config.max_heading_rate_rad_s
     )
     counts["vicon_heading_samples_repaired"] = repaired
-    counts["vicon_position_glitch_samples"] = int(glitches.sum())
-    good = ~glitches  # glitch samples leave the truth: no estimate pairs with them
+    # what the Vicon cannot vouch for, inside the selected span: scored nowhere
+    end = float(truth_t[-1])
+    excluded = tuple(
+        replace(interval, end_s=min(interval.end_s, end))
+        for interval in recording.truth_quality.intervals
+        if interval.start_s <= end
+    )
+    excluded_s = float(np.sum(np.diff(merged_spans(excluded), axis=1))) if excluded else 0.0
+    if excluded:
+        counts["vicon_samples_excluded"] = int(excluded_mask(truth_t, excluded).sum())
+        warnings.append(
+            f"Vicon not trusted in {len(excluded)} interval(s), {excluded_s:.2f} s, excluded "
+            "from the scoring (datasets.truth_quality): "
+            + "; ".join(" ".join(interval.line().split()) for interval in excluded[:5])
+            + ("; ..." if len(excluded) > 5 else "")
+        )
     ground_truth = _ground_truth(
-        truth_t[good],
-        truth_xy[good],
-        heading[good],
-        subject_of,
-        scored.location,
-        scan_ids,
+        truth_t, truth_xy, heading, subject_of, scored.location, scan_ids, excluded
     )
 
     speeds = odo_values[:, 0]
@@ -209,9 +219,8 @@ def load_mrclam(
             else ", ".join(f"barcode {a} <-> {b} survey positions" for a, b in scored.swaps)
             or "none detected"
         ),
-        "excluded_truth_s": float(np.sum(np.diff(truth_t)[glitches[1:]]))
-        if len(truth_t) > 1
-        else 0.0,
+        "excluded_truth_s": excluded_s,
+        "excluded_truth": [interval.line() for interval in excluded],
         "options": config.model_dump(),
         "scans": len(scans),
         "calibration": calibration.summary,
@@ -252,6 +261,7 @@ def _ground_truth(
     subject_of: dict[int, int],
     location: dict[int, np.ndarray],
     scan_ids: tuple[tuple[float, np.ndarray], ...],
+    excluded: tuple[TruthInterval, ...] = (),
 ) -> GroundTruth:
     """Vicon poses, finite-difference velocities, the surveyed map (``location``: subject ->
     position, with the detected label swaps applied) keyed by barcode."""
@@ -276,4 +286,5 @@ def _ground_truth(
         landmarks=LandmarkMap(ids=ids, positions=landmark_positions, frame=Frame.WORLD),
         body_velocity=StateBlock(t.copy(), body_velocity, None, Frame.BODY),
         scan_ids=scan_ids,
+        excluded=excluded,
     )

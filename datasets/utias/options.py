@@ -75,11 +75,6 @@ class UtiasOptions(BaseModel):
         description="rows whose time does not increase are dropped and counted; more than this "
         "fraction of the odometry and ground truth is an error (the file is broken, not quirky)",
     )
-    max_vicon_speed_m_s: float = Field(
-        2.0,
-        gt=0,
-        description="Vicon positions jumping away faster than this are glitches, excluded from the scoring",
-    )
     max_heading_rate_rad_s: float = Field(
         3.0, gt=0, description="Vicon heading changes faster than this are glitches"
     )

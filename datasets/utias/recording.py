@@ -1,5 +1,6 @@
 """One robot's MRCLAM files as streams on one time base: odometry, Vicon truth (headings
-repaired, position glitches flagged) and sighting times (``datasets.utias``).
+repaired, its untrusted intervals found by ``datasets.truth_quality``) and sighting times
+(``datasets.utias``).
 
 ``read_recording`` is what the loader and the calibration of the *other* robots share; it
 is cached per process on the files' identity (path, size, modification time) and the
@@ -16,7 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from datasets.errors import InputError
+from datasets.odometry_calibration import Increments
 from datasets.rotations import wrap_angle
+from datasets.truth_quality import TruthQuality, assess_truth
 from datasets.utias.tables import Table, first_backward, grid_times, increasing, read_table
 
 ROBOT_FILES = ("Odometry", "Groundtruth", "Measurement")
@@ -28,6 +31,8 @@ class Recording:
 
     Attributes:
         folder, robot: where it comes from.
+        identity: the three files' (size, modification time): a changed file is another
+            recording (caches key on it).
         odometry, truth, sightings: the parsed files (line numbers for messages).
         time_source: ``row_grid`` (row index x grid step) or ``printed``.
         origin: the printed time of the base's zero [s].
@@ -37,14 +42,17 @@ class Recording:
             repaired (``repair_heading_glitches``) over the whole recording.
         truth_heading_raw (m,) [rad]: the headings as printed.
         heading_samples_repaired: how many headings the repair replaced.
-        position_glitches (m,) bool: Vicon positions flagged as glitches
-            (``vicon_position_glitches``): not truth.
+        truth_quality: where the Vicon cannot be trusted (``datasets.truth_quality``:
+            dropouts, freezes, jumps, wrong tracks, headings against the direction of
+            travel, motion the odometry contradicts), judged on the repaired headings
+            against the raw odometry. Neither scored nor fitted on.
         meas_t (k,) [s]: the sightings' times on the base (snapped to the grid on grid data).
         counts: rows dropped because their time did not increase (printed times only).
     """
 
     folder: Path
     robot: int
+    identity: tuple
     odometry: Table
     truth: Table
     sightings: Table
@@ -57,7 +65,7 @@ class Recording:
     truth_heading: np.ndarray
     truth_heading_raw: np.ndarray
     heading_samples_repaired: int
-    position_glitches: np.ndarray
+    truth_quality: TruthQuality
     meas_t: np.ndarray
     counts: dict[str, int]
 
@@ -66,8 +74,10 @@ class Recording:
         return f"utias:{self.folder}#robot{self.robot}"
 
     def vicon(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(times (m,), positions (m, 2), repaired headings (m,)) of the whole recording."""
-        return self.truth_t, self.truth_xy, self.truth_heading
+        """(times (m,), positions (m, 2), repaired headings (m,)) of the whole recording,
+        without the samples ``truth_quality`` excludes (what a calibration may fit on)."""
+        keep = self.truth_quality.keep_mask(self.truth_t)
+        return self.truth_t[keep], self.truth_xy[keep], self.truth_heading[keep]
 
 
 def robots_in(folder: Path) -> list[int]:
@@ -88,20 +98,24 @@ def read_recording(
     grid_step_s: float,
     max_dropped_fraction: float,
     max_heading_rate_rad_s: float,
-    max_vicon_speed_m_s: float,
 ) -> Recording:
     """Robot ``robot``'s recording in ``folder`` (module docstring; cached)."""
     folder = Path(folder).resolve()
-    identity = tuple(_file_identity(folder / f"Robot{robot}_{kind}.dat") for kind in ROBOT_FILES)
     return _read_recording(
         folder,
         robot,
-        identity,
+        robot_identity(folder, robot),
         grid_step_s,
         max_dropped_fraction,
         max_heading_rate_rad_s,
-        max_vicon_speed_m_s,
     )
+
+
+def robot_identity(folder: Path, robot: int) -> tuple:
+    """The (size, modification time) of a robot's three files: what ``read_recording``
+    caches on, without reading them."""
+    folder = Path(folder).resolve()
+    return tuple(_file_identity(folder / f"Robot{robot}_{kind}.dat") for kind in ROBOT_FILES)
 
 
 def _file_identity(path: Path) -> tuple[int, int] | None:
@@ -120,9 +134,7 @@ def _read_recording(
     step: float,
     max_dropped_fraction: float,
     max_heading_rate_rad_s: float,
-    max_vicon_speed_m_s: float,
 ) -> Recording:
-    del identity  # part of the cache key only: a changed file is read again
     name = f"utias:{folder}#robot{robot}"
     counts: dict[str, int] = {}
     odometry = read_table(folder / f"Robot{robot}_Odometry.dat", ("time", "v", "omega"))
@@ -163,13 +175,23 @@ def _read_recording(
         )
     odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
     heading, repaired = repair_heading_glitches(truth_values[:, 2], truth_t, max_heading_rate_rad_s)
-    glitches = vicon_position_glitches(truth_t, truth_values[:, :2], max_vicon_speed_m_s)
-    arrays = (odo_t, odo_values, truth_t, truth_values, heading, glitches, meas_t)
+    dt = np.diff(odo_t)
+    odometry_motion = Increments(
+        odo_t[1:],
+        dt,
+        np.column_stack([odo_values[1:, 0] * dt, np.zeros(len(dt)), odo_values[1:, 1] * dt]),
+    )
+    try:
+        quality = assess_truth(truth_t, truth_values[:, :2], heading, motion=odometry_motion)
+    except InputError as error:
+        raise InputError(f"{truth.path}: {error}") from None
+    arrays = (odo_t, odo_values, truth_t, truth_values, heading, meas_t)
     for array in arrays:
         array.flags.writeable = False  # shared by every load of this recording
     return Recording(
         folder=folder,
         robot=robot,
+        identity=identity,
         odometry=odometry,
         truth=truth,
         sightings=sightings,
@@ -182,7 +204,7 @@ def _read_recording(
         truth_heading=heading,
         truth_heading_raw=truth_values[:, 2],
         heading_samples_repaired=repaired,
-        position_glitches=glitches,
+        truth_quality=quality,
         meas_t=meas_t,
         counts=counts,
     )
@@ -228,19 +250,3 @@ def repair_heading_glitches(
                 replaced += gap - 1
             last_good = i
     return np.asarray(wrap_angle(repaired)), replaced
-
-
-def vicon_position_glitches(t: np.ndarray, xy: np.ndarray, max_speed_m_s: float) -> np.ndarray:
-    """(N,) bool: Vicon samples whose position jumps away from the last good sample faster
-    than ``max_speed_m_s`` (a lost or swapped marker: metres in a few samples), until the
-    track comes back within reach of that sample. Excluded from the scoring."""
-    bad = np.zeros(len(t), bool)
-    last = 0
-    stamps, x, y = t.tolist(), xy[:, 0].tolist(), xy[:, 1].tolist()  # Python floats: fast
-    for i in range(1, len(stamps)):
-        reach = max_speed_m_s * max(stamps[i] - stamps[last], 1e-9)
-        if math.hypot(x[i] - x[last], y[i] - y[last]) > reach + 0.05:  # 5 cm: Vicon jitter
-            bad[i] = True
-        else:
-            last = i
-    return bad

@@ -340,7 +340,13 @@ class AghiliFilter:
             elif decision == Decision.MATCHED:
                 landmark_id = int(map_ids[association.candidates[j]])
             self.recorder.association(
-                scan.t, j, landmark_id, decision, association.reasons[j], association.inflation[j]
+                scan.t,
+                j,
+                landmark_id,
+                decision,
+                association.reasons[j],
+                association.inflation[j],
+                association.alternatives_of(j),
             )
         self.recorder.landmark_count(scan.t, len(self.landmark_ids))
         if self.noise_window is not None:

@@ -104,6 +104,12 @@ class ScanAssociation:
             where it fell outside the id gate (module docstring).
         inflation: ``c`` of each sighting, shape (k,): 1 unless inflated.
         search: the JCBB / nearest-neighbour result (nodes, truncation), None with ids.
+        alternatives: for a geometric decision, how many *other* interpretations each
+            sighting had within the new-landmark gate, shape (k,): the candidates there
+            besides the one it matched, and for a pairing outside the association gate
+            (``_exclusive_wide_pairs``) also "a new landmark"; 0 where the decision was
+            the only one in reach; None when not judged (ids, or a hypothesis of
+            ``ekf-slam-mht``, which keeps the alternatives instead of choosing).
     """
 
     mode: Mode
@@ -114,6 +120,11 @@ class ScanAssociation:
     noise: np.ndarray
     inflation: np.ndarray
     search: AssociationResult | None = None
+    alternatives: np.ndarray | None = None
+
+    def alternatives_of(self, j: int) -> int:
+        """Sighting ``j``'s other interpretations (``alternatives``), -1 when not judged."""
+        return -1 if self.alternatives is None else int(self.alternatives[j])
 
     def rows(self, decision: Decision) -> np.ndarray:
         """Indices of the sightings with ``decision``, increasing."""
@@ -166,10 +177,13 @@ class ScanAssociation:
         d = self.noise.shape[-1] if self.noise.ndim == 3 else 0
         noise = np.full((total, d, d), np.nan)
         inflation = np.ones(total)
+        alternatives = None if self.alternatives is None else np.full(total, -1, dtype=int)
         for local, j in enumerate(rows):
             decisions[j], reasons[j] = self.decisions[local], self.reasons[local]
             candidates[j], nis[j] = self.candidates[local], self.individual_nis[local]
             noise[j], inflation[j] = self.noise[local], self.inflation[local]
+            if alternatives is not None:
+                alternatives[j] = self.alternatives[local]
         return replace(
             self,
             decisions=tuple(decisions),
@@ -178,6 +192,7 @@ class ScanAssociation:
             individual_nis=nis,
             noise=noise,
             inflation=inflation,
+            alternatives=alternatives,
         )
 
 
@@ -223,6 +238,20 @@ def _exclusive_wide_pairs(
         if np.count_nonzero(inside[:, reach[0]]) == 1:
             pairs.append((j, int(reach[0])))
     return pairs
+
+
+def _alternatives(
+    distances: np.ndarray, candidates: np.ndarray, inflation: np.ndarray, wide_gate: float
+) -> np.ndarray:
+    """(k,) the other interpretations each sighting had within the new-landmark gate
+    ``wide_gate`` (``ScanAssociation.alternatives``): every candidate in reach (``distances``
+    (k, m) individual D^2) but the one it matched, and "new landmark" for a pairing made
+    outside the association gate (its inflation > 1)."""
+    reach = distances < wide_gate
+    counts = reach.sum(axis=1)
+    matched = candidates >= 0
+    counts[matched] -= reach[np.flatnonzero(matched), candidates[matched]]
+    return counts + (matched & (inflation > 1.0))
 
 
 def _inflated_to_gate(
@@ -417,7 +446,7 @@ class AssociationPolicy:
         """
         k, d = np.asarray(measured).shape
         if k == 0 or candidate_count == 0:
-            return _empty(mode, measured_cov)
+            return replace(_empty(mode, measured_cov), alternatives=np.zeros(k, dtype=int))
         predicted, blocks = predictor.individual(np.arange(candidate_count))
         distances = individual_compatibility(measured, measured_cov, predicted, blocks)
         gated = np.flatnonzero(
@@ -471,7 +500,20 @@ class AssociationPolicy:
                 distances[j, i], gate, measured_cov[j], blocks[i]
             )
         return ScanAssociation(
-            mode, tuple(decisions), candidates, tuple(reasons), nis, noise, inflation, search
+            mode,
+            tuple(decisions),
+            candidates,
+            tuple(reasons),
+            nis,
+            noise,
+            inflation,
+            search,
+            _alternatives(
+                distances,
+                candidates,
+                inflation,
+                chi2_gate(d, self.options.new_landmark_probability),
+            ),
         )
 
     def distinct_new(

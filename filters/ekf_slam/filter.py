@@ -360,7 +360,13 @@ class EkfSlam:
             else:
                 landmark_id = -1
             self.recorder.association(
-                t, j, landmark_id, decision, association.reasons[j], association.inflation[j]
+                t,
+                j,
+                landmark_id,
+                decision,
+                association.reasons[j],
+                association.inflation[j],
+                association.alternatives_of(j),
             )
 
     def predict(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

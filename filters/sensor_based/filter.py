@@ -534,7 +534,13 @@ class SensorBasedSlam:
                 self.source_of[landmark_id] = int(scan.ids[j])
         for j, decision in enumerate(association.decisions):
             self.recorder.association(
-                t, j, int(assignment[j]), decision, association.reasons[j], association.inflation[j]
+                t,
+                j,
+                int(assignment[j]),
+                decision,
+                association.reasons[j],
+                association.inflation[j],
+                association.alternatives_of(j),
             )
 
         seen_ids = {int(a) for a in assignment if a >= 0}

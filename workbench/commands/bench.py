@@ -54,6 +54,10 @@ def bench(
     suite = with_settings(suite, settings_by_estimator(settings or [], names))
     runs = suite.default_runs if runs is None else runs
     out = Path(out).resolve()
+    if scheduler is not None:
+        from workbench.sweep.backends import check_scheduler_address
+
+        check_scheduler_address(scheduler)  # before --out is created
     with exclusive(out):
         claim_collection(out)
         return _bench(
@@ -105,7 +109,7 @@ def _bench(
         records = load_runs([out / "runs"])
         labels = {(record.dataset_label, record.estimator_label) for record in records}
         pairs = pairs_on_disk(suite, runs, labels)
-        report = write_report(records, out, pairs, plot_formats=formats)
+        report = write_report(records, out, pairs, plot_formats=formats, reference=suite.reference)
         return BenchOutcome(report, failed=sum(1 for r in report.rows for _ in r.errors()))
     interactive = sys.stderr.isatty() if show_progress is None else show_progress
     backend = make_backend(scheduler, workers)
@@ -167,7 +171,15 @@ def _bench(
             for dataset in plan.datasets
             for estimator in plan.estimators
         ]
-        report = write_report(records, out, pairs, list(plan.notes), formats, submit=backend.submit)
+        report = write_report(
+            records,
+            out,
+            pairs,
+            list(plan.notes),
+            formats,
+            submit=backend.submit,
+            reference=suite.reference,
+        )
         failed = sum(1 for record in records if not record.finished)
         typer.echo(
             f"{summary.ran} run(s) done, {summary.skipped} skipped (finished before), {failed} failed; "

@@ -1,5 +1,5 @@
 """``workbench metrics ate|rpe``: evaluate any pair of trajectory files (TUM, or KITTI poses
-paired by index) and print JSON."""
+paired by index; which one a file is, its rows say) and print JSON."""
 
 from __future__ import annotations
 
@@ -10,15 +10,16 @@ from typing import Annotated
 import typer
 
 from datasets.errors import InputError
-from datasets.trajectory_io import read_kitti, read_tum
+from datasets.trajectory import Trajectory
+from datasets.trajectory_io import read_kitti, read_tum, trajectory_format
 
 ALIGNMENTS = ("se3", "sim3", "se2", "none")
 
 RefOption = Annotated[
-    Path, typer.Option("--ref", help="reference trajectory (TUM; .kitti: KITTI poses)")
+    Path, typer.Option("--ref", help="reference trajectory (TUM or KITTI poses, told by its rows)")
 ]
 EstOption = Annotated[
-    Path, typer.Option("--est", help="estimated trajectory (TUM; .kitti: KITTI poses)")
+    Path, typer.Option("--est", help="estimated trajectory (TUM or KITTI poses, told by its rows)")
 ]
 AlignOption = Annotated[str, typer.Option("--align", help="alignment: se3, sim3, se2 or none")]
 MaxDiffOption = Annotated[
@@ -36,17 +37,34 @@ def _check_positive(name: str, value: float) -> None:
         raise InputError(f"{name} must be a positive number, got {value}")
 
 
-def read_trajectory(path: Path):
-    """A TUM file, or KITTI poses (``.kitti``: 3x4 a line, no times: the pose index is
-    the time, so two KITTI files pair pose by pose)."""
-    if Path(path).suffix.lower() == ".kitti":
-        return read_kitti(path)
-    return read_tum(path)
+def read_pair(ref: Path, est: Path) -> tuple[Trajectory, Trajectory]:
+    """The two trajectories to compare. TUM files keep their stamps (paired by time within
+    ``--max-diff``). KITTI poses carry no time, so a KITTI file is never paired by seconds:
+    it is paired with the other file pose by pose, which needs equally many poses (a pose
+    missing in the middle would shift every later pair), and takes the other's stamps when
+    that is a TUM file (the pose index otherwise)."""
+    formats = (trajectory_format(ref), trajectory_format(est))
+    if "kitti" not in formats:
+        return read_tum(ref), read_tum(est)
+    pair = [
+        read_kitti(path) if kind == "kitti" else read_tum(path)
+        for path, kind in zip((ref, est), formats)
+    ]
+    if len(pair[0]) != len(pair[1]):
+        raise InputError(
+            f"--ref {ref} holds {len(pair[0])} poses and --est {est} holds {len(pair[1])}: "
+            "KITTI poses carry no time and pair by index, which needs equally many poses; "
+            "give TUM files (with times) to pair by time"
+        )
+    times = pair[formats.index("tum")].t if "tum" in formats else pair[0].t
+    return Trajectory(times, pair[0].positions, pair[0].rotations), Trajectory(
+        times, pair[1].positions, pair[1].rotations
+    )
 
 
 def register(app: typer.Typer) -> None:
     metrics_app = typer.Typer(
-        help="Evaluate TUM trajectory files (prints JSON).", no_args_is_help=True
+        help="Evaluate trajectory files, TUM or KITTI poses (prints JSON).", no_args_is_help=True
     )
 
     @metrics_app.command("ate")
@@ -59,9 +77,7 @@ def register(app: typer.Typer) -> None:
 
         _check_align(align)
         _check_positive("--max-diff", max_diff)
-        report = ate_report(
-            read_trajectory(ref), read_trajectory(est), align=align, max_diff_s=max_diff
-        )
+        report = ate_report(*read_pair(ref, est), align=align, max_diff_s=max_diff)
         typer.echo(dump_json(report), nl=False)
 
     @metrics_app.command("rpe")
@@ -87,8 +103,7 @@ def register(app: typer.Typer) -> None:
         if unit not in ("frames", "m"):
             raise InputError(f"--unit must be frames or m, got '{unit}'")
         report = rpe_report(
-            read_trajectory(ref),
-            read_trajectory(est),
+            *read_pair(ref, est),
             delta=delta,
             unit=unit,
             align=align,

@@ -30,6 +30,13 @@ def register(app: typer.Typer) -> None:
             str,
             typer.Option("--plot-format", help="figure formats, comma-separated: png, pdf, svg"),
         ] = "png",
+        reference: Annotated[
+            str | None,
+            typer.Option(
+                "--reference",
+                help="an estimator every row's ATE is divided by, per dataset (e.g. smoother-isam2)",
+            ),
+        ] = None,
     ) -> None:
         """Compare any run folders in one table (Markdown, LaTeX, CSV) and figures."""
         from workbench.commands.bench import show_report
@@ -40,5 +47,7 @@ def register(app: typer.Typer) -> None:
         formats = parse_plot_formats(plot_format) if plots else ()
         records = load_runs(paths)
         with exclusive(out):
-            report = write_report(records, claim_collection(out), plot_formats=formats, seed=seed)
+            report = write_report(
+                records, claim_collection(out), plot_formats=formats, seed=seed, reference=reference
+            )
         show_report(report, f"{len(records)} run(s)")

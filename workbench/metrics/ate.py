@@ -22,7 +22,7 @@ from workbench.metrics.alignment import (
     estimate_alignment,
     lift_to_3d,
 )
-from workbench.metrics.timestamps import DEFAULT_MAX_DIFF_S, associate
+from workbench.metrics.timestamps import DEFAULT_MAX_DIFF_S, _span, associate
 
 
 def error_statistics(errors: np.ndarray) -> dict[str, float]:
@@ -46,7 +46,16 @@ def paired_trajectories(
     """The two trajectories reduced to their time-paired poses (evo's association).
 
     A planar and a spatial trajectory are paired after lifting the planar one to 3-D.
+    ``InputError`` when their time spans do not overlap (at most their ends touch, within
+    ``max_diff_s``): the one or two pairs there are no trajectory to compare.
     """
+    if len(reference) > 1 and len(estimate) > 1:
+        shared_s = min(reference.t[-1], estimate.t[-1]) - max(reference.t[0], estimate.t[0])
+        if shared_s <= 0:
+            raise InputError(
+                f"the reference ({_span(reference.t)}) and the estimate ({_span(estimate.t)}) "
+                "do not overlap in time: no matching timestamps to compare"
+            )
     if reference.dimension != estimate.dimension:
         reference, estimate = lift_to_3d(reference), lift_to_3d(estimate)
     ref_indices, est_indices = associate(reference, estimate, max_diff_s)

@@ -33,7 +33,7 @@ RPE_UNITS = ("frames", "m")
 def pairs_by_frames(count: int, delta: int) -> np.ndarray:
     """Consecutive index pairs ``(0, d), (d, 2d), ...`` among ``count`` poses, shape (K, 2)."""
     if delta < 1:
-        raise InputError(f"RPE delta in frames must be a positive integer, got {delta}")
+        raise InputError(f"--delta in frames must be a positive integer, got {delta}")
     starts = np.arange(0, count, int(delta))
     return np.column_stack([starts[:-1], starts[1:]]).astype(int)
 
@@ -47,7 +47,7 @@ def pairs_by_distance(positions: np.ndarray, delta_m: float) -> np.ndarray:
         delta_m: path length per pair [m], > 0.
     """
     if not delta_m > 0:
-        raise InputError(f"RPE delta in metres must be positive, got {delta_m}")
+        raise InputError(f"--delta in metres must be positive, got {delta_m}")
     steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
     ends = [0]
     travelled = 0.0
@@ -119,13 +119,14 @@ def rpe_errors(
     reference, estimate = lift_to_3d(reference), lift_to_3d(estimate)
     if unit == "frames":
         if not float(delta).is_integer():
-            raise InputError(f"RPE delta in frames must be an integer, got {delta}")
+            raise InputError(f"--delta in frames must be an integer, got {delta}")
         pairs = pairs_by_frames(len(estimate), int(delta))
     else:
         pairs = pairs_by_distance(estimate.positions, float(delta))
     if len(pairs) == 0:
         raise InputError(
-            f"RPE delta = {delta:g} {unit} gives no pose pair among {len(estimate)} poses; try a smaller delta"
+            f"--delta {delta:g} {unit} gives no pose pair among {len(estimate)} poses; "
+            "try a smaller --delta"
         )
     trans, rot = relative_errors(reference.homogeneous(), estimate.homogeneous(), pairs)
     return pairs, trans, np.rad2deg(rot)

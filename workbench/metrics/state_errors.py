@@ -2,7 +2,9 @@
 
 Truth is looked up at the estimate's times (``timestamps.trajectory_at`` /
 ``vectors_at``: the exact sample within 1e-6 s, else linear interpolation of vectors and
-slerp of rotations); estimate steps outside the truth's time span are left out.
+slerp of rotations); estimate steps outside the truth's time span are left out, and so are
+those the truth cannot vouch for: inside ``GroundTruth.excluded``, interpolated from an
+excluded sample, or across a gap of the truth (``timestamps.MAX_INTERPOLATION_STEPS``).
 
 Block by block (error = truth - estimate, in the frame the estimate states):
 
@@ -51,10 +53,11 @@ class NeesSeries:
 def truth_pose_at(
     ground_truth: GroundTruth, times: np.ndarray
 ) -> tuple[Trajectory, np.ndarray] | None:
-    """True pose at ``times`` and the validity mask, or None without a true trajectory."""
+    """True pose at ``times`` and the validity mask, or None without a true trajectory
+    (times inside ``ground_truth.excluded`` or across a gap of the truth are invalid)."""
     if ground_truth.pose is None or len(ground_truth.pose) == 0:
         return None
-    return trajectory_at(ground_truth.pose, times)
+    return trajectory_at(ground_truth.pose, times, ground_truth.excluded)
 
 
 def pose_error_series(
@@ -84,7 +87,7 @@ def block_error_series(
     truth = _true_block(name, block.frame, ground_truth)
     if truth is None or len(truth.t) == 0 or truth.values.shape[1] != block.values.shape[1]:
         return None
-    true_values, valid = vectors_at(truth.t, truth.values, block.t)
+    true_values, valid = vectors_at(truth.t, truth.values, block.t, ground_truth.excluded)
     return block.t[valid], true_values - block.values[valid], valid
 
 

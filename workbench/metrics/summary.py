@@ -18,6 +18,10 @@ files):
     100..800 m from every 10th paired pose, None on paths shorter than 100 m),
     ``gps_holdout_rmse_m`` (estimated positions interpolated linearly at
     ``GroundTruth.held_out_positions`` stamps inside the estimate's span, no alignment).
+    Truth inside ``GroundTruth.excluded`` scores nothing: its samples leave the reference
+    before pairing, estimate poses inside an interval leave the pairs, RPE pairs whose
+    interval meets one are dropped (KITTI segments, 100 m and longer, keep their trusted
+    ends), held-out fixes inside one are not compared.
 consistency (``state_errors.nees_series``: truth looked up at the estimate's times):
     ``nees_pose_mean`` (dof 6 or 3), ``nees_pose_inside_fraction`` (single-run NEES inside
     its two-sided 95% chi-square interval), ``nees_attitude_mean``, ``nees_position_mean``,
@@ -38,8 +42,13 @@ association: ``association_rejected_fraction``, ``association_ambiguous_fraction
     sightings: not used), ``association_inflated_fraction`` (used with inflated noise: a
     known id outside the id gate, or a geometric pairing by mutual exclusion between the
     association and new-landmark gates, ``filters.association.policy``),
+    ``association_contested_fraction`` (of the sightings decided geometrically by one
+    hypothesis, those with another interpretation in reach: see ``contested_fraction``),
     ``association_precision``, ``association_recall``, ``loop_closures`` (events),
     ``loop_closure_precision`` (``data_association``).
+divergence (``workbench.metrics.divergence``, from the estimate alone): ``diverged_at_s``
+    (when its sightings left their gates for good, or its position left the mapped area;
+    None when it held) and ``divergence`` (the evidence, one line).
 cost: ``steps`` (timing entries = measurements processed; without timing, causal pose
     records), ``time_per_step_ms_median``, ``time_per_step_ms_p99``, ``time_total_s``.
 """
@@ -72,7 +81,7 @@ from workbench.metrics.state_errors import (
     nees_series,
     truth_pose_at,
 )
-from workbench.metrics.timestamps import vectors_at
+from workbench.metrics.timestamps import straddles, trusted_samples, vectors_at
 
 Metrics = dict[str, float | int | None]
 
@@ -138,11 +147,16 @@ def accuracy_metrics(pose: Trajectory | None, ground_truth: GroundTruth | None) 
     metrics["gps_holdout_rmse_m"] = _holdout_rmse(pose, ground_truth)
     if ground_truth.pose is None or len(ground_truth.pose) == 0:
         return metrics
+    excluded = ground_truth.excluded
     try:
-        reference, estimate = paired_trajectories(ground_truth.pose, pose)
+        reference, estimate = paired_trajectories(
+            trusted_samples(ground_truth.pose, excluded), pose
+        )
     except InputError:
         return metrics  # no stamps in common: nothing to compare
     finite = np.all(np.isfinite(reference.positions), axis=1)
+    if excluded:
+        finite &= ground_truth.trusted(estimate.t)  # no estimate scored inside an interval
     if int(finite.sum()) < MIN_SCORED_POSES:
         return metrics  # n/a, never a number from one or two poses (an alignment needs 3)
     reference, estimate = (
@@ -153,7 +167,11 @@ def accuracy_metrics(pose: Trajectory | None, ground_truth: GroundTruth | None) 
     metrics["ate_rmse_m"] = _rmse(ate_errors(reference, estimate, align, allow_degenerate=True)[0])
     metrics["ate_rmse_raw_m"] = _rmse(ate_errors(reference, estimate, "none")[0])
     if len(estimate) >= 2:
-        _, trans, rot_deg = rpe_errors(reference, estimate, 1, "frames")
+        pairs, trans, rot_deg = rpe_errors(reference, estimate, 1, "frames")
+        if excluded:
+            # a "1-frame" pair across an excluded interval would span untrusted truth
+            whole = ~straddles(reference.t[pairs[:, 0]], reference.t[pairs[:, 1]], excluded)
+            trans, rot_deg = trans[whole], rot_deg[whole]
         metrics["rpe_trans_rmse_m"] = _rmse(trans)
         metrics["rpe_rot_rmse_deg"] = _rmse(rot_deg)
         kitti = kitti_segment_errors(reference, estimate)
@@ -180,7 +198,12 @@ def _holdout_rmse(pose: Trajectory, ground_truth: GroundTruth) -> float | None:
     if ground_truth.held_out_positions is None:
         return None
     stamps, positions = ground_truth.held_out_positions
-    estimated, valid = vectors_at(pose.t, pose.positions, np.asarray(stamps, dtype=float))
+    stamps = np.asarray(stamps, dtype=float)
+    # the estimate is interpolated at the fixes, across whatever steps it reported
+    estimated, valid = vectors_at(pose.t, pose.positions, stamps, max_gap_s=math.inf)
+    if ground_truth.excluded:
+        trusted = ground_truth.trusted(stamps)
+        estimated, valid = estimated[trusted[valid]], valid & trusted
     if not np.any(valid):
         return None
     shared = min(estimated.shape[1], np.asarray(positions).shape[1])
@@ -259,6 +282,16 @@ def map_metrics(
     return {"landmark_rmse_m": rmse, "landmarks_mapped": count, "landmarks_in_map": in_map}
 
 
+def contested_fraction(diagnostics) -> float | None:
+    """Of the sightings decided geometrically by one hypothesis, the fraction that had
+    another interpretation within the new-landmark gate (``assoc_alternatives`` >= 1): the
+    decisions a single-hypothesis association could have got wrong. None where nothing was
+    judged so (ids, multiple hypotheses, runs recorded before the figure existed)."""
+    alternatives = np.asarray(diagnostics.assoc_alternatives)
+    judged = alternatives >= 0
+    return _number(np.mean(alternatives[judged] >= 1)) if judged.any() else None
+
+
 def association_metrics(estimate: Estimate, ground_truth: GroundTruth | None) -> Metrics:
     """Association precision/recall and loop-closure counts and precision."""
     diagnostics = estimate.diagnostics
@@ -272,6 +305,7 @@ def association_metrics(estimate: Estimate, ground_truth: GroundTruth | None) ->
         "association_rejected_fraction": fraction(decisions == "rejected"),
         "association_ambiguous_fraction": fraction(decisions == "ambiguous"),
         "association_inflated_fraction": fraction(np.asarray(diagnostics.assoc_inflation) > 1.0),
+        "association_contested_fraction": contested_fraction(diagnostics),
         "association_precision": None,
         "association_recall": None,
         "loop_closures": sum(1 for event in diagnostics.events if event.kind == "loop_closure"),
@@ -340,5 +374,18 @@ def compute_metrics(estimate: Estimate, sequence: Sequence) -> Metrics:
     metrics.update(nis_metrics(estimate))
     metrics.update(map_metrics(estimate.landmarks, ground_truth, mapping))
     metrics.update(association_metrics(estimate, ground_truth))
+    metrics.update(divergence_metrics(estimate, sequence))
     metrics.update(cost_metrics(estimate))
     return metrics
+
+
+def divergence_metrics(estimate: Estimate, sequence: Sequence) -> Metrics:
+    """``diverged_at_s`` and ``divergence`` (the evidence), None when the run held
+    (``workbench.metrics.divergence``: no truth of the trajectory needed)."""
+    from workbench.metrics.divergence import detect_divergence
+
+    found = detect_divergence(estimate, sequence)
+    return {
+        "diverged_at_s": None if found is None else found.t,
+        "divergence": None if found is None else found.reason,
+    }

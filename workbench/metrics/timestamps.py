@@ -8,10 +8,21 @@ Two jobs, both about time stamps:
 * ``vectors_at`` / ``trajectory_at`` give a true state at an estimator's times: the exact
   sample when one lies within ``EXACT_TOLERANCE_S``, otherwise linear interpolation of
   vectors and spherical linear interpolation (slerp) of rotations between the two
-  neighbouring samples. Times outside the truth's span get no value (a mask says which).
+  neighbouring samples. Times outside the truth's span get no value (a mask says which),
+  and neither do times the truth cannot vouch for: inside an excluded interval
+  (``GroundTruth.excluded``), next to an excluded sample (interpolating from it), or
+  between two samples more than ``MAX_INTERPOLATION_STEPS`` median steps apart (a
+  straight line across a gap is not truth).
+
+``trusted_samples`` and ``straddles`` serve the scorers that pair by nearest stamp (ATE,
+RPE, the evo result files): the former drops excluded reference samples before pairing,
+the latter finds consecutive pairs whose interval holds an excluded one.
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -19,12 +30,23 @@ from scipy.spatial.transform import Rotation
 from datasets.errors import InputError
 from datasets.rotations import quat_wxyz_from_rotation, rotation_from_quat_wxyz, wrap_angle
 from datasets.trajectory import Trajectory
+from datasets.truth_quality import (
+    TruthInterval,
+    TruthQualitySettings,
+    excluded_mask,
+    merged_spans,
+)
 
 DEFAULT_MAX_DIFF_S = 0.01
 """evo's default ``--t_max_diff`` [s]."""
 
 EXACT_TOLERANCE_S = 1e-6
 """Two stamps closer than this [s] are the same instant (no interpolation)."""
+
+MAX_INTERPOLATION_STEPS = float(TruthQualitySettings.model_fields["dropout_min_steps"].default)
+"""Truth is interpolated only between samples at most this many median steps apart (4):
+the truth-quality detector calls a longer gap a dropout, so what one refuses the other
+reports."""
 
 
 def matching_time_indices(
@@ -104,14 +126,27 @@ def _span(times: np.ndarray) -> str:
     return f"{len(times)} poses, t {times[0]:.6f}..{times[-1]:.6f} s"
 
 
+def interpolation_limit_s(sample_times: np.ndarray) -> float:
+    """The longest gap [s] truth is interpolated across: ``MAX_INTERPOLATION_STEPS`` times
+    the median positive step of ``sample_times`` (inf with fewer than two distinct times)."""
+    steps = np.diff(np.asarray(sample_times, dtype=float))
+    steps = steps[steps > 0]
+    return MAX_INTERPOLATION_STEPS * float(np.median(steps)) if len(steps) else math.inf
+
+
 def _brackets(
-    sample_times: np.ndarray, query_times: np.ndarray
+    sample_times: np.ndarray,
+    query_times: np.ndarray,
+    max_gap_s: float | None = None,
+    excluded: Sequence[TruthInterval] = (),
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """For each query: the samples around it, the interpolation weight, and a validity mask.
 
     Returns (lower index, upper index, weight of the upper sample in [0, 1], valid); a query
-    within ``EXACT_TOLERANCE_S`` of a sample uses that sample alone (lower == upper), and a
-    query outside the sampled span is invalid.
+    within ``EXACT_TOLERANCE_S`` of a sample uses that sample alone (lower == upper). A query
+    is invalid outside the sampled span, between two samples more than ``max_gap_s`` apart
+    (None: ``interpolation_limit_s``), inside an ``excluded`` interval, or when a sample it
+    uses lies inside one.
     """
     sample_times = np.asarray(sample_times, dtype=float)
     query_times = np.asarray(query_times, dtype=float)
@@ -137,15 +172,26 @@ def _brackets(
         gap > 0, np.clip((query_times - sample_times[lower]) / safe_gap, 0.0, 1.0), 0.0
     )
     inside = (query_times >= sample_times[0]) & (query_times <= sample_times[-1])
+    limit = interpolation_limit_s(sample_times) if max_gap_s is None else max_gap_s
+    inside &= gap <= limit  # never a straight line across a gap
 
     lower = np.where(exact, nearest, lower)
     upper = np.where(exact, nearest, upper)
     weight = np.where(exact, 0.0, weight)
-    return lower, upper, weight, exact | inside
+    valid = exact | inside
+    if len(excluded):
+        trusted_sample = ~excluded_mask(sample_times, tuple(excluded))
+        valid &= ~excluded_mask(query_times, tuple(excluded))
+        valid &= trusted_sample[lower] & trusted_sample[upper]
+    return lower, upper, weight, valid
 
 
 def vectors_at(
-    sample_times: np.ndarray, values: np.ndarray, query_times: np.ndarray
+    sample_times: np.ndarray,
+    values: np.ndarray,
+    query_times: np.ndarray,
+    excluded: Sequence[TruthInterval] = (),
+    max_gap_s: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Vector samples at ``query_times``: exact match within 1e-6 s, else linear interpolation.
 
@@ -153,11 +199,16 @@ def vectors_at(
         sample_times: shape (N,), non-decreasing [s].
         values: shape (N, k).
         query_times: shape (Q,) [s].
+        excluded: intervals where the samples are not trusted (``GroundTruth.excluded``): no
+            value inside them or from a sample inside them.
+        max_gap_s: longest gap [s] to interpolate across; None: ``MAX_INTERPOLATION_STEPS``
+            median steps of ``sample_times`` (truth); ``math.inf`` for an estimate, whose
+            own stamps are what it reported.
 
     Returns:
         (values at the valid queries, shape (V, k); valid mask, shape (Q,)).
     """
-    lower, upper, weight, valid = _brackets(sample_times, query_times)
+    lower, upper, weight, valid = _brackets(sample_times, query_times, max_gap_s, excluded)
     values = np.asarray(values, dtype=float)
     if not np.any(valid):
         return np.zeros((0,) + values.shape[1:]), valid
@@ -165,17 +216,23 @@ def vectors_at(
     return (1.0 - w) * values[lower[valid]] + w * values[upper[valid]], valid
 
 
-def trajectory_at(truth: Trajectory, query_times: np.ndarray) -> tuple[Trajectory, np.ndarray]:
+def trajectory_at(
+    truth: Trajectory,
+    query_times: np.ndarray,
+    excluded: Sequence[TruthInterval] = (),
+    max_gap_s: float | None = None,
+) -> tuple[Trajectory, np.ndarray]:
     """``truth`` at ``query_times``: exact samples within 1e-6 s, else interpolated.
 
     Positions are interpolated linearly; 3-D rotations by slerp between the neighbouring
     samples; planar headings linearly along the shorter arc. Covariances are dropped.
+    ``excluded`` and ``max_gap_s`` as in ``vectors_at``.
 
     Returns:
         (trajectory at the valid queries, valid mask of shape (Q,)).
     """
     query_times = np.asarray(query_times, dtype=float)
-    lower, upper, weight, valid = _brackets(truth.t, query_times)
+    lower, upper, weight, valid = _brackets(truth.t, query_times, max_gap_s, excluded)
     lower, upper, weight = lower[valid], upper[valid], weight[valid]
     w = weight[:, None]
     positions = (1.0 - w) * truth.positions[lower] + w * truth.positions[upper]
@@ -186,6 +243,32 @@ def trajectory_at(truth: Trajectory, query_times: np.ndarray) -> tuple[Trajector
         interpolated = np.asarray(wrap_angle(truth.rotations[lower] + weight * step), dtype=float)
         rotations = np.where(weight == 0.0, truth.rotations[lower], interpolated)
     return Trajectory(t=query_times[valid], positions=positions, rotations=rotations), valid
+
+
+def trusted_samples(reference: Trajectory, excluded: Sequence[TruthInterval]) -> Trajectory:
+    """``reference`` without its samples inside an ``excluded`` interval (the same object
+    when nothing is excluded, so unaffected scores stay bit for bit)."""
+    if not len(excluded):
+        return reference
+    return reference.select(np.flatnonzero(~excluded_mask(reference.t, tuple(excluded))))
+
+
+def straddles(
+    first_t: np.ndarray, second_t: np.ndarray, excluded: Sequence[TruthInterval]
+) -> np.ndarray:
+    """(K,) bool: True where an ``excluded`` interval meets ``[first_t, second_t]`` [s]
+    (shapes (K,)): a relative error over it would span untrusted truth."""
+    first_t = np.asarray(first_t, dtype=float)
+    second_t = np.asarray(second_t, dtype=float)
+    spans = merged_spans(tuple(excluded))
+    if len(spans) == 0:
+        return np.zeros(first_t.shape, dtype=bool)
+    # the last span starting at or before the pair's end meets the pair if it ends after
+    # the pair's start (spans are disjoint and sorted)
+    index = np.searchsorted(spans[:, 0], second_t, side="right") - 1
+    meets = index >= 0
+    meets[meets] = spans[index[meets], 1] >= first_t[meets]
+    return meets
 
 
 def _slerp_pairs(quat_a: np.ndarray, quat_b: np.ndarray, weight: np.ndarray) -> np.ndarray:

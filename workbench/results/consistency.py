@@ -6,7 +6,9 @@ and the smoothed history alike: every state block's NEES per step (pose, attitud
 position, velocity, biases; ``landmarks``: every landmark of a snapshot summed, a
 diagnostic), the map's joint NEES per snapshot (``map``), and the stacked NIS of every
 update (``nis``), each with its degrees of freedom; plus the per-axis errors and sigmas of
-the causal blocks for the error plots.
+the causal blocks for the error plots. Steps the truth cannot vouch for (inside
+``GroundTruth.excluded``, or across a gap of the truth) are in none of them
+(``workbench.metrics.state_errors``).
 
 Per pair (``consistency_cells``), for each table block (pose, velocity, gyro bias,
 accel bias, map, NIS): the scored history (causal when the estimator has one, else the

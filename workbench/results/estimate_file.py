@@ -23,11 +23,13 @@ final map keeps its joint covariance.
 from __future__ import annotations
 
 import json
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
 
-from datasets.errors import InputError
+from datasets.errors import InputError, one_line
 from datasets.estimate import Diagnostics, Estimate, Event, StepTiming
 from datasets.state import BlockName, Frame, LandmarkMap, StateBlock, StateHistory
 from datasets.trajectory import Trajectory
@@ -51,7 +53,12 @@ DIAGNOSTIC_FIELDS = (
     "landmark_count_t",
     "landmark_count",
 )
+OPTIONAL_DIAGNOSTIC_FIELDS = ("assoc_alternatives",)
+"""Diagnostics added after estimate files were first written: absent in older files, read
+back as empty (not recorded)."""
 HISTORY_PREFIXES = ("", "smoothed_")
+# What a damaged zip raises while it is read (a CRC mismatch is a BadZipFile).
+_ZIP_ERRORS = (ValueError, zipfile.BadZipFile, zlib.error, EOFError)
 
 
 def _map_arrays(key: str, landmarks: LandmarkMap, joint: bool) -> dict[str, np.ndarray]:
@@ -98,7 +105,7 @@ def estimate_arrays(estimate: Estimate) -> dict[str, np.ndarray]:
     if estimate.landmarks is not None:
         arrays.update(_map_arrays("landmarks", estimate.landmarks, joint=True))
     diagnostics = estimate.diagnostics
-    for field_name in DIAGNOSTIC_FIELDS:
+    for field_name in DIAGNOSTIC_FIELDS + OPTIONAL_DIAGNOSTIC_FIELDS:
         arrays[f"diag_{field_name}"] = getattr(diagnostics, field_name)
     for name, values in diagnostics.extras.items():
         arrays[f"extra_{name}"] = values
@@ -168,6 +175,137 @@ def _read_events(folder: Path) -> tuple[tuple[Event, ...], tuple[str, ...]]:
     return events, tuple(str(note) for note in content.get("notes", []))
 
 
+_NUMERIC_SUFFIXES = (
+    "_t",
+    "_positions",
+    "_rotations",
+    "_covariances",
+    "_joint_covariance",
+    "_values",
+    "_ids",
+    "_seconds",
+    "_nis",
+    "_dof",
+    "_count",
+    "_index",
+    "_id",
+    "_inflation",
+)
+
+
+def _wanted_kinds(name: str) -> str | None:
+    """The dtype kinds an array of this name may have (None: any but objects)."""
+    if name.endswith("_frame"):
+        return "U"
+    if name.startswith("extra_") or not name.endswith(_NUMERIC_SUFFIXES):
+        return None  # extras and association decisions may be text
+    return "biuf"
+
+
+def _array_headers(path: Path) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    """Shape and dtype of every array in an ``.npz``, from the ``.npy`` headers alone (the
+    first bytes of each member), each checked against the member's stored size."""
+    headers = {}
+    try:
+        with zipfile.ZipFile(path) as archive:
+            for info in archive.infolist():
+                if not info.filename.endswith(".npy"):
+                    raise InputError(
+                        f"{path}: not an estimate file ('{info.filename}' in it is not an array)"
+                    )
+                with archive.open(info) as member:
+                    version = np.lib.format.read_magic(member)
+                    # estimate_arrays writes plain numeric and text arrays: versions 1.0
+                    # and 2.0 (3.0 is for unicode field names, which it never writes)
+                    if version == (1, 0):
+                        shape, _, dtype = np.lib.format.read_array_header_1_0(member)
+                    elif version == (2, 0):
+                        shape, _, dtype = np.lib.format.read_array_header_2_0(member)
+                    else:
+                        raise ValueError(f"'{info.filename}' has .npy format {version}")
+                    header_bytes = member.tell()
+                # a header claiming more than the member holds would have the reader
+                # allocate what the file never backs
+                if dtype.hasobject or (
+                    int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+                    != info.file_size - header_bytes
+                ):
+                    raise InputError(
+                        f"{path}: not an estimate file ('{info.filename[:-4]}' holds "
+                        f"{info.file_size - header_bytes} bytes, not the {dtype} array of "
+                        f"shape {shape} its header states)"
+                    )
+                name = info.filename[:-4]
+                # frames are text, times and states numbers: a text time column would only
+                # fail later, inside a figure
+                wanted = _wanted_kinds(name)
+                if wanted is not None and dtype.kind not in wanted:
+                    raise InputError(f"{path}: not an estimate file ('{name}' is a {dtype} array)")
+                headers[name] = (tuple(shape), dtype)
+    except _ZIP_ERRORS as error:
+        if isinstance(error, InputError):
+            raise
+        raise InputError(
+            f"{path}: not a readable estimate file (not a zip of numpy arrays: {error})"
+        ) from None
+    return headers
+
+
+def _check_lengths(path: Path, headers: dict, keys: list[str], what: str) -> None:
+    """The arrays ``keys`` (those present) have one length: a row per time of ``what``."""
+    present = [key for key in keys if key in headers]
+    lengths = {key: headers[key][0][0] if headers[key][0] else None for key in present}
+    if len(set(lengths.values())) > 1:
+        found = ", ".join(f"{key} {length}" for key, length in lengths.items())
+        raise InputError(f"{path}: not an estimate file ({what} arrays differ in length: {found})")
+
+
+def check_estimate_file(path: str | Path) -> None:
+    """``InputError`` naming ``path`` unless it is an ``estimate.npz`` as ``estimate_arrays``
+    writes it: a zip of plain numeric or text arrays (no objects), with every diagnostic
+    array, each history's companions (``pose_t`` with ``pose_positions`` and
+    ``pose_rotations``, a block's ``_t`` with its ``_values``, the timing's three) and one
+    length per history. Reads only the array headers, so a report of many runs stays cheap;
+    ``read_estimate`` reads the data."""
+    path = Path(path)
+    headers = _array_headers(path)
+    required = [f"diag_{name}" for name in DIAGNOSTIC_FIELDS]
+    for prefix in HISTORY_PREFIXES:
+        if f"{prefix}pose_t" in headers:
+            required += [f"{prefix}pose_positions", f"{prefix}pose_rotations"]
+        for name in BlockName:
+            if f"{prefix}{name}_values" in headers:
+                required.append(f"{prefix}{name}_t")
+    if "timing_t" in headers:
+        required += ["timing_seconds", "timing_finalize_seconds"]
+    if "landmarks_ids" in headers:
+        required.append("landmarks_positions")
+    missing = [key for key in required if key not in headers]
+    if missing:
+        raise InputError(f"{path}: not an estimate file (no {', '.join(missing[:3])})")
+    for prefix in HISTORY_PREFIXES:
+        pose = ["t", "positions", "rotations", "covariances"]
+        _check_lengths(path, headers, [f"{prefix}pose_{key}" for key in pose], "pose")
+        for name in BlockName:
+            block = [f"{prefix}{name}_{key}" for key in ("t", "values", "covariances")]
+            _check_lengths(path, headers, block, name)
+    _check_lengths(path, headers, ["timing_t", "timing_seconds"], "timing")
+    for stem in ("nis", "scan_nis", "landmark_count"):
+        _check_lengths(path, headers, [f"diag_{stem}_t", f"diag_{stem}"], stem)
+
+
+def load_arrays(path: str | Path) -> dict[str, np.ndarray]:
+    """Every array of an ``estimate.npz`` after ``check_estimate_file``; ``InputError``
+    naming the file when it is not one or its data is damaged."""
+    path = Path(path)
+    check_estimate_file(path)
+    try:
+        with np.load(path, allow_pickle=False) as stored:
+            return {key: stored[key] for key in stored.files}
+    except _ZIP_ERRORS as error:
+        raise InputError(f"{path}: not a readable estimate file ({error})") from None
+
+
 def read_estimate(folder: str | Path) -> Estimate:
     """The ``Estimate`` a run folder holds (``estimate.npz`` and ``events.json``);
     ``InputError`` naming the file when it is missing or not an estimate file."""
@@ -175,20 +313,30 @@ def read_estimate(folder: str | Path) -> Estimate:
     path = folder / ESTIMATE_FILE
     if not path.is_file():
         raise InputError(f"{folder}: not a run folder (no {ESTIMATE_FILE})")
-    try:
-        with np.load(path, allow_pickle=False) as stored:
-            data = {key: stored[key] for key in stored.files}
-    except (OSError, ValueError) as error:
-        raise InputError(f"{path}: not a readable estimate file ({error})") from None
-    missing = [f"diag_{name}" for name in DIAGNOSTIC_FIELDS if f"diag_{name}" not in data]
-    if missing:
-        raise InputError(f"{path}: not an estimate file (no {', '.join(missing[:3])})")
+    data = load_arrays(path)
     events, notes = _read_events(folder)
+    try:
+        return _estimate(data, events, notes)
+    except InputError:
+        raise
+    except (ValueError, TypeError) as error:  # arrays of the right names holding nonsense
+        raise InputError(f"{path}: not an estimate file ({one_line(error)})") from None
+
+
+def _estimate(
+    data: dict[str, np.ndarray], events: tuple[Event, ...], notes: tuple[str, ...]
+) -> Estimate:
     extras = {
         key[len("extra_") :]: value for key, value in data.items() if key.startswith("extra_")
     }
+    optional = {
+        name: data[f"diag_{name}"] for name in OPTIONAL_DIAGNOSTIC_FIELDS if f"diag_{name}" in data
+    }
     diagnostics = Diagnostics(
-        **{name: data[f"diag_{name}"] for name in DIAGNOSTIC_FIELDS}, events=events, extras=extras
+        **{name: data[f"diag_{name}"] for name in DIAGNOSTIC_FIELDS},
+        events=events,
+        extras=extras,
+        **optional,
     )
     smoothed_present = bool(data.get("smoothed_present", np.array(0)))
     smoothed = _read_history(data, "smoothed_")

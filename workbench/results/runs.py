@@ -16,7 +16,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from datasets.errors import InputError
+from datasets.errors import InputError, one_line
 from workbench.results.consistency import (
     CONSISTENCY_FILE,
     ErrorSeries,
@@ -72,26 +72,58 @@ class RunRecord:
 
 def _read_json(path: Path) -> dict[str, Any]:
     try:
-        found = json.loads(path.read_text())
-    except (OSError, ValueError) as error:
-        raise InputError(f"{path}: not a readable JSON file ({error})") from None
+        found = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:  # UnicodeDecodeError is a ValueError
+        raise InputError(f"{path}: not a readable JSON file ({one_line(error)})") from None
     if not isinstance(found, dict):
         raise InputError(f"{path}: expected a JSON object")
     return found
 
 
+def _seed(found: dict[str, Any], path: Path) -> int:
+    """The record's ``seed`` (0 when absent): a whole number >= 0, as ``--seed`` takes it."""
+    seed = found.get("seed") or 0
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(f"{path}: seed: expected a whole number >= 0, got {seed!r}")
+    return seed
+
+
+def _check_metrics(metrics: dict[str, Any], path: Path) -> None:
+    """The values a table shows are numbers (or null: not measured), and ``warnings`` a list
+    of lines: a hand-edited or damaged metrics.json is an error naming the key, never a
+    blank cell or a warning split into letters."""
+    from workbench.results.summary import STAT_KEYS  # summary builds on this module
+
+    for key in STAT_KEYS:
+        value = metrics.get(key)
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+            raise InputError(f"{path}: {key}: expected a number or null, got {value!r}")
+    warnings = metrics.get("warnings")
+    if warnings is not None and not (
+        isinstance(warnings, list) and all(isinstance(line, str) for line in warnings)
+    ):
+        raise InputError(f"{path}: warnings: expected a list of lines, got {warnings!r}")
+
+
 def read_run(folder: Path) -> RunRecord:
-    """The record of one run folder (``InputError`` when it is not one)."""
+    """The record of one run folder (``InputError`` when it is not one, or when its
+    metrics.json or estimate.npz is damaged: ``_check_metrics``,
+    ``estimate_file.check_estimate_file``)."""
+    from workbench.results.estimate_file import ESTIMATE_FILE, check_estimate_file
+
     folder = Path(folder)
     if (folder / METRICS_FILE).is_file():
         metrics = _read_json(folder / METRICS_FILE)
+        _check_metrics(metrics, folder / METRICS_FILE)
+        if (folder / ESTIMATE_FILE).is_file():
+            check_estimate_file(folder / ESTIMATE_FILE)
         return RunRecord(
             folder=folder,
             dataset=str(metrics.get("dataset")),
             estimator=str(metrics.get("estimator")),
             dataset_label=str(metrics.get("dataset_label") or metrics.get("dataset")),
             estimator_label=str(metrics.get("estimator_label") or metrics.get("estimator")),
-            seed=int(metrics.get("seed") or 0),
+            seed=_seed(metrics, folder / METRICS_FILE),
             metrics=metrics,
         )
     if (folder / ERROR_FILE).is_file():
@@ -103,7 +135,7 @@ def read_run(folder: Path) -> RunRecord:
             estimator=str(request.get("estimator")),
             dataset_label=str(request.get("dataset_label") or request.get("dataset")),
             estimator_label=str(request.get("estimator_label") or request.get("estimator")),
-            seed=int(request.get("seed") or 0),
+            seed=_seed(request, folder / REQUEST_FILE),
             error=str(failure.get("error")),
         )
     raise InputError(f"{folder}: not a run folder (no {METRICS_FILE} or {ERROR_FILE})")

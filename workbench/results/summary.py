@@ -185,11 +185,39 @@ def summarize_pair(
     )
 
 
+REFERENCE_KEY = "ate_over_reference"
+"""The ``summarize(reference=...)`` column: ATE over the reference estimator's."""
+
+
+def with_reference_ratios(rows: list[PairSummary], reference: str) -> list[PairSummary]:
+    """Rows with ``ate_over_reference``: each row's mean ATE over the mean ATE of the
+    ``reference`` estimator's row on the same dataset, causal over causal, and smoothed over
+    smoothed for a row with no causal ATE (the batch smoother). Rows without either, or
+    datasets without the reference, get none."""
+    from dataclasses import replace
+
+    references = {row.dataset: row for row in rows if row.estimator_name == reference}
+    ratioed = []
+    for row in rows:
+        base = references.get(row.dataset)
+        key = "ate_rmse_m" if "ate_rmse_m" in row.stats else "ate_rmse_smoothed_m"
+        own, denominator = row.stats.get(key), None if base is None else base.stats.get(key)
+        if own is None or denominator is None or denominator.mean <= 0:
+            ratioed.append(row)
+            continue
+        ratio = Stat(own.mean / denominator.mean, None, own.count)
+        ratioed.append(replace(row, stats={**row.stats, REFERENCE_KEY: ratio}))
+    return ratioed
+
+
 def summarize(
-    records: list[RunRecord], planned: list[PlannedPair] | None = None
+    records: list[RunRecord],
+    planned: list[PlannedPair] | None = None,
+    reference: str | None = None,
 ) -> list[PairSummary]:
     """One row per pair: the plan's pairs in its order, then any other pairs of the records
-    (by dataset, then the registry's estimator order)."""
+    (by dataset, then the registry's estimator order); with ``reference`` (an estimator's
+    registered name) each row's ATE over that estimator's (``with_reference_ratios``)."""
     groups: dict[tuple[str, str], list[RunRecord]] = {}
     for record in records:
         groups.setdefault((record.dataset_label, record.estimator_label), []).append(record)
@@ -202,7 +230,7 @@ def summarize(
         key=lambda item: (item[0][0], _registry_order(item[1][0].estimator), item[0][1]),
     )
     rows += [summarize_pair(dataset, estimator, runs) for (dataset, estimator), runs in remaining]
-    return rows
+    return rows if reference is None else with_reference_ratios(rows, reference)
 
 
 def _number(value: float | None) -> float | None:
@@ -226,6 +254,9 @@ def summary_frame(rows: list[PairSummary]):
             stat = row.stats.get(key)
             record[key] = None if stat is None else stat.mean
             record[f"{key}_std"] = None if stat is None else stat.std
+        if any(REFERENCE_KEY in other.stats for other in rows):
+            ratio = row.stats.get(REFERENCE_KEY)
+            record[REFERENCE_KEY] = None if ratio is None else ratio.mean
         for block in TABLE_BLOCKS:
             cell = row.cells.get(block)
             statistic = None if cell is None else cell.statistic

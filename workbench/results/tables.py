@@ -52,6 +52,8 @@ class StatColumn:
 
 STAT_COLUMNS = (
     StatColumn("ate_rmse_m", "ATE [m]"),
+    # a suite's reference estimator (``reference:``): ATE over its ATE on the same dataset
+    StatColumn("ate_over_reference", "ATE ÷ ref"),
     StatColumn("ate_rmse_smoothed_m", "ATE smoothed [m]"),
     StatColumn("rpe_trans_rmse_m", "RPE trans [m]"),
     StatColumn("rpe_rot_rmse_deg", "RPE rot [deg]"),
@@ -283,6 +285,9 @@ def terminal_tables(rows: list[PairSummary], title: str = "") -> list:
         table.add_column("estimator", no_wrap=True)
         table.add_column("runs", justify="right", no_wrap=True)
         table.add_column("ATE [m]", justify="right", no_wrap=True)
+        ratios = any("ate_over_reference" in row.stats for row in rows if row.dataset == dataset)
+        if ratios:
+            table.add_column("÷ ref", justify="right", no_wrap=True)
         for block in blocks:
             table.add_column(BLOCK_HEADERS[block], justify="right", no_wrap=True)
         table.add_column("NIS/dof", justify="right", no_wrap=True)
@@ -298,6 +303,9 @@ def terminal_tables(rows: list[PairSummary], title: str = "") -> list:
                 _runs_text(row),
                 (format_number(ate.mean, 3) + smoothed) if ate else "",
             ]
+            if ratios:
+                ratio = row.stats.get("ate_over_reference")
+                cells.append(format_number(ratio.mean, 3) if ratio else "")
             for block in blocks:
                 cell = row.cells.get(block)
                 if cell is None:

@@ -6,6 +6,7 @@ Both run the same top-level worker functions (``plan.probe_dataset``, ``cell.run
 from __future__ import annotations
 
 import os
+import re
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any, Protocol
@@ -88,17 +89,85 @@ class LocalBackend:
         return f"{self.workers} local process(es)"
 
 
-class DaskBackend:
-    """An existing Dask distributed scheduler at ``address`` (``tcp://host:8786``)."""
+SCHEDULER_TIMEOUT_S = 10.0
+"""How long connecting to a Dask scheduler and its first handshake may take, together."""
+SCHEDULER_FORMS = (
+    "tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786), tls://HOST:PORT for TLS (docs/dask.md), "
+    "ws://HOST:PORT or wss://HOST:PORT over websockets"
+)
+_ADDRESS = re.compile(r"(?:(?:tcp|tls|ws|wss)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(\d{1,5})")
 
-    def __init__(self, address: str) -> None:
+
+def check_scheduler_address(address: str) -> None:
+    """``InputError`` naming ``--scheduler`` and the value unless it is an address a Dask
+    client can dial (``SCHEDULER_FORMS``; ``inproc://`` for a cluster in this process)."""
+    if address.startswith("inproc://"):
+        return
+    match = _ADDRESS.fullmatch(address)
+    if match is None or not 0 < int(match.group(1)) < 65536:
+        raise InputError(
+            f"--scheduler '{address}': not a Dask scheduler address; expected {SCHEDULER_FORMS}"
+        )
+
+
+def _handshake(address: str, timeout_s: float) -> None:
+    """Connect to ``address`` and exchange Dask's handshake, all within ``timeout_s``.
+
+    ``distributed.Client`` bounds only the TCP connect: a peer that accepts and then stays
+    silent holds its handshake forever, and the reply's 8-byte length prefix is allocated as
+    announced (a garbage reply asked for 3 EiB after 83 s). distributed has no setting that
+    caps what it receives (``distributed.comm.shard`` only splits what it sends), so this
+    probe runs the same handshake under one deadline, without deserializing the reply: a
+    length the allocator refuses fails at once, any other reply is cut off at the deadline
+    (so what it can hold is what arrives in ``timeout_s``). Errors propagate."""
+    import asyncio
+
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def exchange() -> None:
+        arguments = Security().get_connection_args("client")
+        comm = await connect(address, timeout=timeout_s, deserialize=False, **arguments)
+        await comm.close()
+
+    asyncio.run(asyncio.wait_for(exchange(), timeout_s))
+
+
+class DaskBackend:
+    """An existing Dask distributed scheduler at ``address`` (``tcp://host:8786``).
+
+    The scheduler and its workers are trusted with this process: Dask's protocol unpickles
+    what they send (docs/dask.md). The address is checked first (``check_scheduler_address``)
+    and its handshake bounded in time and size (``_handshake``), so that a wrong address is
+    an ``InputError`` naming it within ``SCHEDULER_TIMEOUT_S``."""
+
+    def __init__(self, address: str, timeout_s: float | None = None) -> None:
+        timeout_s = SCHEDULER_TIMEOUT_S if timeout_s is None else timeout_s
+        check_scheduler_address(address)
+        where = f"--scheduler {address}"
+        if not address.startswith("inproc://"):  # a cluster in this process answers as one
+            try:
+                _handshake(address, timeout_s)
+            except TimeoutError:
+                raise InputError(
+                    f"{where}: no Dask scheduler handshake within {timeout_s:g} s (the address "
+                    "accepts connections but does not answer as a Dask scheduler)"
+                ) from None
+            except OSError as error:
+                raise InputError(
+                    f"{where}: cannot connect to a Dask scheduler ({one_line(error)})"
+                ) from None
+            except Exception as error:  # any other reply: MemoryError, struct.error, ...
+                raise InputError(
+                    f"{where}: answered, but not as a Dask scheduler ({one_line(error)})"
+                ) from None
         from distributed import Client
 
         try:
-            self._client = Client(address, timeout="20s")
+            self._client = Client(address, timeout=f"{timeout_s}s")
         except (OSError, TimeoutError) as error:
             raise InputError(
-                f"--scheduler {address}: cannot connect to a Dask scheduler ({one_line(error)})"
+                f"{where}: cannot connect to a Dask scheduler ({one_line(error)})"
             ) from None
         self.address = address
 
