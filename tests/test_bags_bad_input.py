@@ -243,6 +243,7 @@ def test_cli_error_is_one_line_and_earlier_results_stay_valid(tmp_path, syntheti
     assert (out / "table.md").read_text() == table
 
 
+@pytest.mark.study
 def test_a_damaged_mcap_reading_fewer_clouds_than_its_index_is_loud(tmp_path) -> None:
     """64 KiB zeroed in the middle of a ROS 2 mcap bag: the reader skips what the damaged
     chunk held; fewer messages than the index lists is an error beyond the threshold, a

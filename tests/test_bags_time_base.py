@@ -213,6 +213,7 @@ def test_without_deskewing_the_start_is_the_first_kept_cloud(tmp_path) -> None:
     assert min(m.t for m in measurements) >= base["start_s"]
 
 
+@pytest.mark.study
 def test_leading_imu_and_wheel_odometry_without_truth(bags) -> None:
     name = f"bag:{bags['ros2']}"
     sequence = load_dataset(name, 0, DATA)
@@ -230,6 +231,7 @@ def test_leading_imu_and_wheel_odometry_without_truth(bags) -> None:
     _assert_every_estimator_runs(sequence, name)
 
 
+@pytest.mark.study
 def test_leading_imu_with_the_truth_named(bags) -> None:
     name = f"bag:{bags['ros2']}"
     sequence = load_dataset(name, 0, NAMED)
@@ -247,6 +249,7 @@ def test_leading_imu_with_the_truth_named(bags) -> None:
     _assert_every_estimator_runs(sequence, name)
 
 
+@pytest.mark.study
 def test_ros1_bag_with_two_odometry_topics(bags) -> None:
     """ROS 1: truth and wheel odometry are both nav_msgs/Odometry; neither is truth unless
     named, and the three filters that failed before run with the truth named."""
@@ -264,6 +267,7 @@ def test_ros1_bag_with_two_odometry_topics(bags) -> None:
         execute(RunRequest(estimator, name), sequence=named)
 
 
+@pytest.mark.study
 def test_workbench_bag_command_runs_every_estimator(bags, tmp_path, capsys) -> None:
     from workbench.cli import main
 

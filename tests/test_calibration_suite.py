@@ -18,6 +18,9 @@ from workbench.sweep import run_sweep
 from workbench.sweep.backends import LocalBackend
 from workbench.sweep.plan import plan_sweep
 
+# a study: the second tier (`pytest -m study`, run by .ci/run after the default tier)
+pytestmark = pytest.mark.study
+
 RUNS = 10  # the fewest that give a verdict
 # Scenario lengths [s]: circle 5, loops 6 (the sweep takes 58 s on the 2-core machine; with
 # the loops at 10 s, 82 s, the verdicts the same). The full suite is ``workbench bench

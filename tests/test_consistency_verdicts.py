@@ -32,6 +32,7 @@ def _map_run(rng: np.random.Generator, truth: np.ndarray) -> LandmarkMap:
     return LandmarkMap.from_joint(np.arange(LANDMARKS), positions, joint, Frame.WORLD, 10.0)
 
 
+@pytest.mark.study
 def test_the_joint_map_band_covers_95_percent_and_the_per_landmark_band_does_not() -> None:
     rng = np.random.default_rng(0)
     truth_positions = rng.uniform(-10.0, 10.0, (LANDMARKS, 2))

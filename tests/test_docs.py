@@ -7,6 +7,8 @@ import re
 import shlex
 from pathlib import Path
 
+import pytest
+
 from workbench.cli import main
 from workbench.registry import ESTIMATORS
 
@@ -23,6 +25,7 @@ def _commands(page: Path) -> list[list[str]]:
     ]
 
 
+@pytest.mark.study
 def test_getting_started_commands_run(tmp_path: Path, monkeypatch, capsys) -> None:
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "1")

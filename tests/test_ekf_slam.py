@@ -493,6 +493,7 @@ def test_a_one_off_sighting_is_provisional_and_dropping_it_is_exact() -> None:
 
 
 # ---------------------------------------------------------------- real data
+@pytest.mark.study
 @pytest.mark.skipif(not UTIAS.is_dir(), reason=f"UTIAS MRCLAM data absent (expected at {UTIAS})")
 def test_utias_robot1_first_200_s_with_ids() -> None:
     from datasets.utias import load
@@ -616,6 +617,7 @@ def _late_heading_nees(run: tuple[str, int, dict[str, str]]) -> float:
     return _heading_nees_after(estimate, sequence, 100.0)
 
 
+@pytest.mark.study
 def test_with_odometry_the_constrained_ekf_keeps_its_heading_consistent_the_standard_does_not() -> (
     None
 ):

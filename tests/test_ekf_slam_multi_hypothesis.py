@@ -153,6 +153,7 @@ def test_composed_odometry_predicts_like_every_sample() -> None:
     assert composed.motion_t == sequential.motion_t
 
 
+@pytest.mark.study
 def test_utias_robot1_without_ids_keeps_the_right_association(utias_folder: Path) -> None:
     # 180 s of robot 1, ids withheld (scored with them): ekf-slam's single-scan decisions
     # pair sightings of unmapped landmarks with mapped neighbours (P 0.922 when written);
@@ -224,6 +225,7 @@ def test_missed_detections_are_priced_for_landmarks_in_view() -> None:
         assert hypothesis.log_likelihood == pytest.approx(expected, abs=1e-9)
 
 
+@pytest.mark.study
 def test_n_scan_back_pruning_keeps_only_the_best_hypothesis_s_old_decisions() -> None:
     """``commit_after_s``: every hypothesis kept descends from the best one's ancestor of
     that long ago (its decisions then are settled); without it the kept hypotheses differ

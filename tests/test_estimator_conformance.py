@@ -35,7 +35,11 @@ def _cases() -> list:
         for name, options in DATASETS:
             if is_compatible(estimator_class, load_dataset(name, 0, options)):
                 label = f"{entry.name}-{name}-{'-'.join(options.values())}"
-                cases.append(pytest.param(entry.name, name, options, id=label))
+                # many hypotheses on the loop without ids: a study (its simulated-loop test
+                # in test_ekf_slam_multi_hypothesis.py stays in the default tier)
+                slow = entry.name == "ekf-slam-mht" and options.get("ids") == "false"
+                marks = [pytest.mark.study] if slow else []
+                cases.append(pytest.param(entry.name, name, options, id=label, marks=marks))
     return cases
 
 

@@ -17,6 +17,9 @@ from workbench.results.summary import summarize
 from workbench.style import estimator_style
 from workbench.suite_files import suite_path
 
+# a study: the second tier (`pytest -m study`): it runs the quick suite, shortened
+pytestmark = pytest.mark.study
+
 NAMES = sorted((entry.name for entry in ESTIMATORS), key=len, reverse=True)
 SHORTER = {"duration_s": 4, "max_steps": 150}
 

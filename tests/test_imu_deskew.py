@@ -171,6 +171,7 @@ def _kiss_yaw_errors(bag, imu_deskew: bool) -> tuple[np.ndarray, dict]:
     return np.array(errors), sequence.metadata
 
 
+@pytest.mark.study
 def test_imu_deskew_beats_constant_velocity_on_the_synthetic_bag(tmp_path) -> None:
     """The corridor bag turns at up to 31 deg/s: KISS-ICP's yaw error per frame with the
     IMU's rotation is well below that with its own constant-velocity deskew (seed 0, 8 s:

@@ -72,7 +72,10 @@ def _simulate(
     return pairs, estimated
 
 
-@pytest.mark.parametrize(("rotation_sigma", "translation_sigma"), [(0.002, 0.02), (0.0005, 0.008)])
+@pytest.mark.parametrize(
+    ("rotation_sigma", "translation_sigma"),
+    [pytest.param(0.002, 0.02, marks=pytest.mark.study), (0.0005, 0.008)],
+)
 def test_the_fit_recovers_known_per_frame_noise(rotation_sigma, translation_sigma):
     """Unbiased over recordings: the mean of 24 fits is within three standard errors of the
     mean (the spread over recordings, not the composite likelihood's) of the truth, and a
@@ -160,6 +163,7 @@ def test_a_constant_yaw_drift_is_recovered_from_the_re_observations():
     )
 
 
+@pytest.mark.study
 def test_the_yaw_rate_standard_error_matches_the_spread_over_recordings():
     """The jackknife over corners states the spread the estimate has: over 30 simulated
     drift-free recordings the estimate divided by its standard error has a std of about 1

@@ -68,6 +68,7 @@ def test_malformed_kitti_files_are_input_errors_naming_file_and_line(tmp_path):
         load_dataset("kitti-imu-gps", 0, {"holdout_fraction": "1.5"})
 
 
+@pytest.mark.study
 def test_isam2_on_kitti_beats_dead_reckoning_on_held_out_fixes():
     from filters.dead_reckoning import DeadReckoning
     from smoothers.modes import SmootherIsam2

@@ -42,9 +42,13 @@ from datasets.measurements import LandmarkScan, Odometry, Sensor
 from datasets.rotations import matrix_from_quat_wxyz, so3_log
 from tests.test_lidar_only import CLIP, LIDAR_ONLY
 
-pytestmark = pytest.mark.skipif(
-    not CLIP.is_dir(), reason="../shared/data/kitti-hdl64-clip (real data) absent"
-)
+pytestmark = [
+    pytest.mark.skipif(
+        not CLIP.is_dir(), reason="../shared/data/kitti-hdl64-clip (real data) absent"
+    ),
+    # a study: the second tier (`pytest -m study`, run by .ci/run after the default tier)
+    pytest.mark.study,
+]
 
 EPOCH_NS = 1_317_000_000 * 1_000_000_000  # late September 2011, when KITTI was recorded
 PERIOD_NS = 100_000_000  # 10 Hz

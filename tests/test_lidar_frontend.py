@@ -15,6 +15,9 @@ from datasets.rotations import so3_exp
 from datasets.synthetic_lidar import write_lidar_bag
 from workbench.commands.bag import bag_command
 
+# a study: the second tier (`pytest -m study`, run by .ci/run after the default tier)
+pytestmark = pytest.mark.study
+
 # 3 s from 5 s into the loop: the end of the bottom corridor and the first turn
 SEGMENT = {"duration_s": "3", "start_s": "5", "columns": "1024"}
 

@@ -154,6 +154,7 @@ def test_every_lidar_only_estimator_runs_on_the_real_clip() -> None:
         assert end < 0.5, (estimator, end)
 
 
+@pytest.mark.study
 @needs_clip
 def test_on_the_real_clip_azimuth_times_take_away_the_corners_yaw_disagreement() -> None:
     """Taken as motion-compensated (the default), the clip's corners disagree with KISS-ICP's

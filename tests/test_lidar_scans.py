@@ -201,6 +201,7 @@ def test_kiss_icp_max_range_comes_from_the_first_scan_and_is_recorded() -> None:
     assert range_from_scan(directions * rng.uniform(0.5, 6.0, (20000, 1)))[0] == 10.0  # floor
 
 
+@pytest.mark.study
 def test_on_the_real_kitti_clip_the_default_front_end_is_kiss_icp_alone() -> None:
     """With no options, the front end's poses on the real clip are those of KISS-ICP run
     alone with its own defaults (``KISSConfig()``, voxel from its max range as its pipeline

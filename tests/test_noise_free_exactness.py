@@ -40,7 +40,15 @@ def _cases() -> list:
     for dataset, options in SCENARIOS.items():
         sequence = load_dataset(dataset, 0, options)
         cases += [
-            pytest.param(dataset, entry.name, id=f"{dataset}-{entry.name}")
+            pytest.param(
+                dataset,
+                entry.name,
+                id=f"{dataset}-{entry.name}",
+                # the slowest (GTSAM's window over the 3-D rover): a study
+                marks=[pytest.mark.study]
+                if (dataset, entry.name) == ("sim:aghili-rover", "smoother-fixed-lag")
+                else [],
+            )
             for entry in ESTIMATORS
             if is_compatible(entry.load(), sequence)
         ]

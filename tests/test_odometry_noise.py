@@ -150,6 +150,7 @@ def test_too_short_a_recording_is_an_input_error() -> None:
         build_windows(increments, times, positions, headings, window_s=5.0)
 
 
+@pytest.mark.study
 def test_utias_odometry_fitted_against_vicon_is_speed_dependent(utias_folder: Path) -> None:
     from datasets.measurements import Odometry
     from datasets.utias import load
@@ -164,6 +165,7 @@ def test_utias_odometry_fitted_against_vicon_is_speed_dependent(utias_folder: Pa
     assert white.noise.odometry is None
 
 
+@pytest.mark.study
 def test_utias_odometry_scales_are_fitted_against_vicon_or_given(utias_folder: Path) -> None:
     """The commanded velocities overstate the turn (robot 1: about 6 %) and the speed the
     more the robot turns; the loader fits the calibration at load and says so, or takes it
@@ -205,6 +207,7 @@ def test_utias_odometry_scales_are_fitted_against_vicon_or_given(utias_folder: P
     )
 
 
+@pytest.mark.study
 def test_calibrate_noise_command_writes_a_model_the_loader_reads(
     utias_folder: Path, tmp_path: Path, capsys
 ) -> None:

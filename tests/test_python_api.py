@@ -38,6 +38,7 @@ def test_run_compare_and_load_runs(tmp_path: Path) -> None:
         run("ekf-slam", "sim:circle", options={"gate_probability": 3}, data={"duration_s": 1})
 
 
+@pytest.mark.study
 def test_the_example_compares_a_filter_and_a_smoother_and_draws_a_figure(tmp_path: Path) -> None:
     completed = subprocess.run(
         [sys.executable, str(REPO / "examples" / "compare_filter_and_smoother.py"), str(tmp_path)],

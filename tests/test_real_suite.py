@@ -37,6 +37,7 @@ def test_shared_names_follow_the_variable(monkeypatch: pytest.MonkeyPatch, tmp_p
     assert spec.resolved_name(tmp_path / "out") == f"utias:{tmp_path}/utias-mrclam1#robot1"
 
 
+@pytest.mark.study
 @pytest.mark.skipif(not UTIAS.is_dir(), reason=f"UTIAS MRCLAM data absent (expected at {UTIAS})")
 def test_every_row_is_divided_by_the_references_ate(tmp_path: Path, monkeypatch) -> None:
     """A two-estimator slice of the real suite on 60 s of robot 4: the ratio column is each

@@ -11,7 +11,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
+
+# a study: the second tier (`pytest -m study`, run by .ci/run after the default tier)
+pytestmark = pytest.mark.study
 
 RUN = [
     sys.executable,

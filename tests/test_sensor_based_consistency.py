@@ -22,10 +22,14 @@ above 72 %). On the random profile an isotropic sigma_v = 0.02 (the paper's form
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from datasets.simulation.scenarios import load_scenario
 from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
 from workbench.metrics.consistency import averaged_nees
+
+# a study: the second tier (`pytest -m study`, run by .ci/run after the default tier)
+pytestmark = pytest.mark.study
 
 SEEDS = range(20)
 DURATION_S = "20"

@@ -223,7 +223,7 @@ def test_paper_tuning_is_a_preset_and_reads_conservative_on_the_laser_s_own_nois
         )
 
 
-@pytest.mark.parametrize("seed", [0, 4])
+@pytest.mark.parametrize("seed", [pytest.param(seed, marks=pytest.mark.study) for seed in (0, 4)])
 def test_without_ids_the_default_loop_associates_and_closes_its_loops(seed: int) -> None:
     """Issue 14 on ``sim:guerreiro-loop --data ids=false`` with every default (the full
     loop): association precision and recall >= 0.99, loop-closure pairs >= 0.95 correct,

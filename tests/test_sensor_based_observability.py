@@ -40,7 +40,11 @@ def _vehicle_trace_ratio(sequence, **config) -> tuple[float, float, np.ndarray]:
 
 @pytest.mark.parametrize(
     "case",
-    ["two_landmarks", "one_landmark_with_direction", "one_landmark_moving_in_body_frame"],
+    [
+        pytest.param("two_landmarks", marks=pytest.mark.study),
+        pytest.param("one_landmark_with_direction", marks=pytest.mark.study),
+        "one_landmark_moving_in_body_frame",
+    ],
 )
 def test_observable_cases_keep_vehicle_covariance_bounded(case: str) -> None:
     config: dict = {"initial_velocity_error_m_s": [0.3, -0.2], "initial_gyro_bias_rad_s": [0.02]}
@@ -61,6 +65,7 @@ def test_observable_cases_keep_vehicle_covariance_bounded(case: str) -> None:
     assert np.linalg.norm(velocity) < 0.05
 
 
+@pytest.mark.study
 def test_single_landmark_at_constant_body_position_is_unobservable() -> None:
     # Circle of radius 3 m at 0.6 m/s (yaw rate 0.2 rad/s) round the only landmark, which
     # stays at (0, 3) in the body frame.

@@ -168,6 +168,7 @@ def test_the_policy_inflates_a_landmark_seen_again_and_nothing_else():
 UTIAS = Path(__file__).resolve().parents[2] / "shared" / "data" / "utias-mrclam1"
 
 
+@pytest.mark.study
 @pytest.mark.skipif(not UTIAS.is_dir(), reason=f"UTIAS MRCLAM data absent (expected at {UTIAS})")
 def test_on_utias_the_fitted_correlation_is_what_keeps_ekf_slam_consistent():
     """Robot 4, the first 300 s with ids: the real sightings' errors are correlated (fitted

@@ -18,6 +18,7 @@ def _run(estimator_class, config, sequence):
     return estimator, estimator.estimate()
 
 
+@pytest.mark.study
 @pytest.mark.slow
 def test_batch_pose_nees_inside_95_percent_bounds_on_shortened_aghili_rover():
     """20 seeds of a 4 s sim:aghili-rover with 3 anchors: the averaged pose NEES of the

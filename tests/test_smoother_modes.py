@@ -152,6 +152,7 @@ def test_3d_relative_pose_odometry_factors_tighten_the_trajectory():
     assert _position_rmse(helped.smoothed, sequence) < 0.2
 
 
+@pytest.mark.study
 def test_fixed_lag_bridges_gaps_longer_than_its_window_and_keeps_its_map():
     """Victoria Park's first 1000 steps have stretches without landmarks longer than the
     5 s window: keyframes on motion alone bridge them. With keep_map=true a landmark seen

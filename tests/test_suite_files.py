@@ -182,6 +182,7 @@ def test_list_name_shows_the_matching_entries_with_their_options(capsys) -> None
     assert "known: sim:aghili-rover" in capsys.readouterr().err
 
 
+@pytest.mark.study
 def test_shell_completion_offers_the_registered_names() -> None:
     def complete(words: str) -> list[str]:
         environment = dict(

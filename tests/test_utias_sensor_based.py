@@ -6,12 +6,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from datasets.utias import load
 from filters.sensor_based.config import SensorBasedConfig
 from filters.sensor_based.filter import SensorBasedSlam
 from workbench.metrics.summary import compute_metrics
 from workbench.runner import run_estimator
+
+# a study: the second tier (`pytest -m study`, run by .ci/run after the default tier)
+pytestmark = pytest.mark.study
 
 
 def test_robot1_earth_pose_nees_is_within_three_times_its_dof(utias_folder: Path) -> None:
