@@ -52,6 +52,7 @@ from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.simulation.imu import gtsam_data_folder
 from datasets.state import GroundTruth, StateHistory
 from datasets.text_files import text_lines
+from datasets.truth_quality import assess_trajectory
 
 IMU_FILE = "KittiEquivBiasedImu.txt"
 GPS_FILE = "KittiGps_converted.txt"
@@ -241,8 +242,15 @@ def load_folder(folder: Path, seed: int, config: KittiImuGpsOptions) -> Sequence
                 yield GpsFix(t=float(row[0]), position=row[1:4].copy(), covariance=gps_cov.copy())
                 j += 1
 
+    # held-out fixes are compared at their own stamps: only what removes fixes (a freeze, a
+    # jump) is excluded (``datasets.truth_quality``), never a gap
+    excluded, truth_warnings = assess_trajectory(
+        held_gps[:, 0], held_gps[:, 1:4], None, "held-out GPS fixes", sampled_only=True
+    )
     truth = GroundTruth(
-        history=StateHistory(), held_out_positions=(held_gps[:, 0].copy(), held_gps[:, 1:4].copy())
+        history=StateHistory(),
+        held_out_positions=(held_gps[:, 0].copy(), held_gps[:, 1:4].copy()),
+        excluded=excluded,
     )
     return Sequence(
         name="kitti-imu-gps",
@@ -261,5 +269,6 @@ def load_folder(folder: Path, seed: int, config: KittiImuGpsOptions) -> Sequence
             "gps_fixes_used": int(len(used_gps)),
             "gps_fixes_held_out": int(len(held_gps)),
             "start_t": float(t0),
+            "warnings": truth_warnings,
         },
     )

@@ -46,6 +46,7 @@ from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import GroundTruth, StateHistory
 from datasets.text_files import text_lines
 from datasets.trajectory_io import read_tum
+from datasets.truth_quality import assess_trajectory
 
 SUFFIXES = (".bin", ".pcd", ".ply")
 _PCD_TYPES = {
@@ -458,7 +459,13 @@ def scans_sequence(
 
     ground_truth = None
     if settings.ground_truth:
-        ground_truth = GroundTruth(history=StateHistory(pose=read_tum(settings.ground_truth)))
+        pose = read_tum(settings.ground_truth)
+        # where the TUM truth cannot be trusted is excluded from the scoring, and said
+        excluded, lines = assess_trajectory(
+            pose.t, pose.positions, pose.rotations, f"truth file {settings.ground_truth}"
+        )
+        warnings.extend(lines)
+        ground_truth = GroundTruth(history=StateHistory(pose=pose), excluded=excluded)
     sensors = (
         ({Sensor.POINT_CLOUD} if settings.point_clouds else set())
         | ({Sensor.ODOMETRY} if settings.odometry else set())

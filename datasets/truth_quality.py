@@ -1082,3 +1082,37 @@ def assess_truth(
         thresholds,
         settings,
     )
+
+
+def assess_trajectory(
+    truth_t: np.ndarray,
+    positions: np.ndarray,
+    rotations: np.ndarray | None,
+    source: str,
+    sampled_only: bool = False,
+    settings: TruthQualitySettings = TruthQualitySettings(),  # noqa: B008 (frozen)
+) -> tuple[tuple[TruthInterval, ...], list[str]]:
+    """``assess_truth`` of a loader's truth stream, as what a ``Sequence`` carries: the
+    intervals for ``GroundTruth.excluded`` and the warning lines (none when all is trusted),
+    each naming ``source`` (e.g. ``topic /ground_truth``, ``held-out GPS fixes``).
+
+    ``sampled_only``: the truth is compared only at its own samples, never interpolated
+    (held-out GPS fixes): a dropout or a rate change removes nothing from the scoring, so
+    only the intervals that do (freezes, jumps, wrong tracks, ...) are returned."""
+    if len(truth_t) < 3:
+        return (), []
+    quality = assess_truth(truth_t, positions, rotations, settings=settings)
+    timing = (TruthKind.DROPOUT, TruthKind.RATE_CHANGE)
+    intervals = tuple(
+        interval for interval in quality.intervals if not (sampled_only and interval.kind in timing)
+    )
+    if not intervals:
+        return (), []
+    spans = merged_spans(intervals)
+    excluded_s = float(np.sum(spans[:, 1] - spans[:, 0]))
+    shown = "; ".join(" ".join(interval.line().split()) for interval in intervals[:5])
+    more = "; ..." if len(intervals) > 5 else ""
+    return intervals, [
+        f"{source} not trusted in {len(intervals)} interval(s), {excluded_s:.2f} s, excluded "
+        f"from the scoring (datasets.truth_quality): {shown}{more}"
+    ]

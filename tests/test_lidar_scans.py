@@ -236,3 +236,25 @@ def test_on_the_real_kitti_clip_the_default_front_end_is_kiss_icp_alone() -> Non
     assert np.max(np.abs(ours - np.array(poses))) < 1e-9
     # and the clip moves: 30 frames of a car, not a standstill that any setting matches
     assert np.linalg.norm(ours[-1, :3, 3]) > 10.0
+
+
+def test_a_truth_file_that_jumps_is_excluded_from_the_scoring_and_said(tmp_path):
+    """Any truth stream is judged (``datasets.truth_quality``): a TUM truth whose track jumps
+    2 m away for three samples and back is excluded there, and the loader says so."""
+    for k, (points, times) in enumerate(_sweeps(3)):
+        _write_pcd(tmp_path / f"{k:06d}.pcd", points, times, binary=True)
+    (tmp_path / "times.txt").write_text("\n".join(f"{5.0 + 0.1 * k:.3f}" for k in range(3)) + "\n")
+    t = 4.0 + 0.01 * np.arange(1000)
+    x = 1.5 * (t - t[0])
+    x[140:143] += 2.0
+    truth = tmp_path.parent / "truth.tum"
+    truth.write_text("\n".join(f"{ti:.3f} {xi:.4f} 0 0 0 0 0 1" for ti, xi in zip(t, x)) + "\n")
+    sequence = load_dataset(
+        f"scans:{tmp_path}", 0, {"kiss.max_num_threads": "1", "ground_truth": str(truth)}
+    )
+    (interval,) = sequence.ground_truth.excluded
+    assert interval.start_s == pytest.approx(t[140]) and interval.end_s == pytest.approx(t[142])
+    assert any(
+        "truth file" in line and "not trusted in 1 interval" in line
+        for line in sequence.metadata["warnings"]
+    )

@@ -75,6 +75,7 @@ from datasets.rotations import matrix_from_quat_wxyz
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import Frame, GroundTruth, LandmarkMap, StateHistory
 from datasets.trajectory import Trajectory
+from datasets.truth_quality import assess_trajectory
 
 
 class BagOptions(LidarSourceOptions):
@@ -198,12 +199,19 @@ def extrinsic_matrix(pose: tuple[float, ...] | None) -> np.ndarray | None:
 
 
 def _ground_truth(
-    times: np.ndarray, positions: np.ndarray, quats: np.ndarray, truth: CornerTruth | None
+    times: np.ndarray,
+    positions: np.ndarray,
+    quats: np.ndarray,
+    truth: CornerTruth | None,
+    topic: str | None,
+    warnings: list[str],
 ) -> GroundTruth | None:
     """The named truth topic's poses and the sidecar's corners, or None without poses: the
     sidecar's corners are in the truth topic's world frame, while without it the first body
     frame is the world, so a map scored against them would compare two frames (a 9 m
-    "landmark RMSE" on a 3 s corridor bag whose map is fine)."""
+    "landmark RMSE" on a 3 s corridor bag whose map is fine). Where the topic cannot be
+    trusted (``datasets.truth_quality``: dropouts, freezes, jumps, ...) is excluded from
+    the scoring and said in ``warnings``."""
     if len(times) < 2:
         return None
     pose = Trajectory(times, positions, quats)
@@ -212,7 +220,9 @@ def _ground_truth(
         if truth is not None
         else None
     )
-    return GroundTruth(history=StateHistory(pose=pose), landmarks=landmarks)
+    excluded, lines = assess_trajectory(times, positions, quats, f"truth topic {topic}")
+    warnings.extend(lines)
+    return GroundTruth(history=StateHistory(pose=pose), landmarks=landmarks, excluded=excluded)
 
 
 def _initial_state(start_s: float, truth: Trajectory | None) -> InitialState:
@@ -338,7 +348,8 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             )
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
-    ground_truth = _ground_truth(*gt, truth)
+    truth_warnings: list[str] = []
+    ground_truth = _ground_truth(*gt, truth, topics.ground_truth, truth_warnings)
     read_settings = ReadSettings(
         time_unit=settings.point_time_unit,
         max_point_time_s=max_point_time_s,
@@ -363,7 +374,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
     # datasets.Sequence metadata "warnings": printed by the workbench (prefixed with the
     # dataset's name) and written to every run's metrics.json
-    warnings = list(load_report.lines()) + ([gps_note] if gps_note else [])
+    warnings = list(load_report.lines()) + ([gps_note] if gps_note else []) + truth_warnings
     if topics.unnamed_truth:
         warnings.append(
             f"no ground truth: pose topic(s) {', '.join(topics.unnamed_truth)} not taken "
