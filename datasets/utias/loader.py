@@ -68,6 +68,7 @@ def load_mrclam(
         config.grid_step_s,
         config.max_dropped_fraction,
         config.max_heading_rate_rad_s,
+        config.max_speed_m_s,
     )
     counts = dict(recording.counts)
     warnings: list[str] = []
@@ -113,6 +114,14 @@ def load_mrclam(
             f"{outside} of {len(sightings.values)} sightings lie outside the odometry's time "
             f"span ({recording_span[0] + origin:.3f}-{recording_span[1] + origin:.3f} s in "
             f"{sightings.path.name}) and were trimmed"
+        )
+    unknown = meas_counts["unknown_barcodes"]
+    if unknown > config.max_dropped_fraction * len(sightings.values):
+        raise InputError(
+            f"{sightings.path}: {unknown} of {len(sightings.values)} sightings name barcodes "
+            f"that {Path(folder) / 'Barcodes.dat'} does not list, more than "
+            f"max_dropped_fraction={config.max_dropped_fraction}: the Barcodes.dat of another "
+            "dataset?"
         )
     backwards = meas_counts["time_going_back"]
     if backwards > config.max_dropped_fraction * len(sightings.values):

@@ -76,7 +76,18 @@ class UtiasOptions(BaseModel):
         "fraction of the odometry and ground truth is an error (the file is broken, not quirky)",
     )
     max_heading_rate_rad_s: float = Field(
-        3.0, gt=0, description="Vicon heading changes faster than this are glitches"
+        3.0,
+        gt=0,
+        description="the largest physical turn rate [rad/s]: Vicon heading changes faster than "
+        "this are glitches (repaired), odometry rows turning faster are implausible (dropped, "
+        "counted, warned)",
+    )
+    max_speed_m_s: float = Field(
+        10.0,
+        gt=0,
+        description="odometry rows faster than this are implausible for a ground robot (the "
+        "MRCLAM robots drive at 0.5 m/s at most): dropped, counted and warned; more than "
+        "max_dropped_fraction of them is an error",
     )
     duration_s: float | None = Field(
         None, gt=0, description="use only the first duration_s seconds"

@@ -98,6 +98,7 @@ def read_recording(
     grid_step_s: float,
     max_dropped_fraction: float,
     max_heading_rate_rad_s: float,
+    max_speed_m_s: float,
 ) -> Recording:
     """Robot ``robot``'s recording in ``folder`` (module docstring; cached)."""
     folder = Path(folder).resolve()
@@ -108,6 +109,7 @@ def read_recording(
         grid_step_s,
         max_dropped_fraction,
         max_heading_rate_rad_s,
+        max_speed_m_s,
     )
 
 
@@ -134,6 +136,7 @@ def _read_recording(
     step: float,
     max_dropped_fraction: float,
     max_heading_rate_rad_s: float,
+    max_speed_m_s: float,
 ) -> Recording:
     name = f"utias:{folder}#robot{robot}"
     counts: dict[str, int] = {}
@@ -174,6 +177,23 @@ def _read_recording(
             " (raise it to accept)"
         )
     odo_t, truth_t, meas_t = odo_t - origin, truth_t - origin, meas_t - origin
+    # a row faster than any ground robot is a corrupted row, not motion: it would carry the
+    # vehicle kilometres in one step (one row at 1e6 m/s read ATE 5 km)
+    implausible = (np.abs(odo_values[:, 0]) > max_speed_m_s) | (
+        np.abs(odo_values[:, 1]) > max_heading_rate_rad_s
+    )
+    if implausible.any():
+        counts["odometry_implausible"] = int(implausible.sum())
+        first = int(np.flatnonzero(implausible)[0])
+        if implausible.sum() > max_dropped_fraction * len(odo_t):
+            raise InputError(
+                f"{odometry.path}: {int(implausible.sum())} of {len(odo_t)} rows move faster "
+                f"than max_speed_m_s={max_speed_m_s:g} or turn faster than "
+                f"max_heading_rate_rad_s={max_heading_rate_rad_s:g} (the first at "
+                f"t={odo_t[first] + origin:.3f} s), more than max_dropped_fraction="
+                f"{max_dropped_fraction}: columns swapped, or another kind of file?"
+            )
+        odo_t, odo_values = odo_t[~implausible], odo_values[~implausible]
     heading, repaired = repair_heading_glitches(truth_values[:, 2], truth_t, max_heading_rate_rad_s)
     dt = np.diff(odo_t)
     odometry_motion = Increments(
