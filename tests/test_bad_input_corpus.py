@@ -141,6 +141,13 @@ def _remove(name: str) -> Callable[[Path], None]:
     return lambda root: (root / name).unlink()
 
 
+def _repeat_truth_rows(root: Path) -> None:
+    """Ten Groundtruth rows written twice (a copy-paste): time goes back in that file."""
+    path = root / "Robot1_Groundtruth.dat"
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join([*lines[:200], *lines[190:200], *lines[200:]]))
+
+
 def _reverse_odometry(root: Path) -> None:
     path = root / "Robot1_Odometry.dat"
     lines = path.read_text().splitlines()
@@ -412,6 +419,8 @@ CASES: list[tuple[str, Builder, str]] = [
         "Robot1_Odometry.dat: no data rows",
     ),
     ("utias odometry backwards", _utias(_reverse_odometry), "do not increase in time"),
+    # the file that goes back is the one named (it read Robot1_Odometry.dat:50002)
+    ("utias truth rows repeated", _utias(_repeat_truth_rows), "Robot1_Groundtruth.dat:201"),
     (
         # a sighting outside the odometry's span is an edge (trimmed, warned); one that goes
         # back in time inside it is a broken file
