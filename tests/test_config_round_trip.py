@@ -42,10 +42,11 @@ def test_config_yaml_and_rerun_reproduce_the_run(estimator: str, tmp_path: Path,
     # a non-default option, so that the config really travels
     assert main(["run", estimator, "sim:circle", *SHORT, "--out", str(first)]) == 0
     config = first / "config.yaml"
-    assert (
-        main(["run", estimator, "sim:circle", *SHORT, "--config", str(config), "--out", str(again)])
-        == 0
-    )
+    # the config alone: its seed (3) and its data option (2 s) travel with it
+    argv = ["run", estimator, "sim:circle", "--no-plots", "--config", str(config)]
+    assert main([*argv, "--out", str(again)]) == 0
+    said = capsys.readouterr().err
+    assert "the recorded run (seed 3, duration_s=2)" in said and "given here" not in said
     assert main(["rerun", str(first), "--no-plots", "--out", str(rerun)]) == 0
     capsys.readouterr()
     _same_run(first, again)
@@ -56,6 +57,14 @@ def test_config_prints_defaults_that_config_accepts(tmp_path: Path, capsys) -> N
     assert main(["config", "ekf-slam"]) == 0
     defaults = capsys.readouterr().out
     assert "gate_probability: 0.99" in defaults
+    # every option with its description as a comment above it
+    from filters.ekf_slam.filter import EkfSlam
+
+    described = [name for name, f in EkfSlam.Config.model_fields.items() if f.description]
+    lines = defaults.splitlines()
+    for name in described:
+        index = next(i for i, line in enumerate(lines) if line.startswith(f"{name}:"))
+        assert lines[index - 1].startswith("# "), name
     path = tmp_path / "ekf.yaml"
     path.write_text(defaults.replace("gate_probability: 0.99", "gate_probability: 0.95"))
     out = tmp_path / "run"
@@ -71,3 +80,19 @@ def test_version_and_bad_rerun(tmp_path: Path, capsys) -> None:
     assert capsys.readouterr().out.startswith("workbench ")
     assert main(["rerun", str(tmp_path), "--out", str(tmp_path / "x")]) == 2
     assert "not a run folder" in capsys.readouterr().err
+
+
+def test_flags_beside_a_run_config_override_it_and_are_said(tmp_path: Path, capsys) -> None:
+    first, other = tmp_path / "first", tmp_path / "other"
+    assert main(["run", "dead-reckoning", "sim:circle", *SHORT, "--out", str(first)]) == 0
+    argv = ["run", "dead-reckoning", "sim:circle", "--no-plots", "--seed", "4"]
+    argv += ["--config", str(first / "config.yaml"), "--out", str(other)]
+    assert main(argv) == 0
+    assert "given here: --seed 4" in capsys.readouterr().err
+    import yaml
+
+    recorded = yaml.safe_load((other / "config.yaml").read_text())
+    assert recorded["seed"] == 4 and recorded["data_options"] == {"duration_s": "2"}
+    wrong = ["run", "ekf-slam", "sim:circle", "--config", str(first / "config.yaml")]
+    assert main([*wrong, "--out", str(tmp_path / "x")]) == 2
+    assert "records a run of dead-reckoning, not ekf-slam" in capsys.readouterr().err

@@ -228,9 +228,17 @@ def run_command(
         typer.Argument(help="dataset name, e.g. sim:aghili-rover", autocompletion=dataset_names),
     ],
     out: Annotated[Path, typer.Option("--out", help="run folder to write")],
-    seed: Annotated[int, typer.Option("--seed", help="random seed of the dataset", min=0)] = 0,
+    seed: Annotated[
+        int | None,
+        typer.Option("--seed", help="random seed of the dataset (default 0, or --config's)", min=0),
+    ] = None,
     config: Annotated[
-        Path | None, typer.Option("--config", help="estimator options as YAML")
+        Path | None,
+        typer.Option(
+            "--config",
+            help="estimator options as YAML, or a run folder's config.yaml (its seed and data "
+            "options too; flags given here override them)",
+        ),
     ] = None,
     set_: SetOption = None,
     data: DataOption = None,
@@ -243,16 +251,44 @@ def run_command(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from workbench.run_folder import dump_json, write_run_folder
-    from workbench.runner import RunRequest, execute
+    from workbench.runner import RunRequest, execute, recorded_run
 
     plot_formats = parse_plot_formats(plot_format)  # checked before the run, not after
+    data_options = parse_assignments(data or [], "--data")
+    recorded = None if config is None else recorded_run(config)
+    if recorded is not None:
+        # a run folder's config.yaml reproduces that run: its seed and data options too,
+        # unless given here (and what is given here is said)
+        if recorded.estimator != estimator:
+            raise InputError(
+                f"--config {config} records a run of {recorded.estimator}, not {estimator}: "
+                f"its options are {recorded.estimator}'s (workbench rerun runs it again)"
+            )
+        overridden = [f"--seed {seed}"] if seed is not None and seed != recorded.seed else []
+        overridden += [
+            f"--data {key}={value}"
+            for key, value in data_options.items()
+            if dict(recorded.data_options).get(key) != value
+        ]
+        if dataset != recorded.dataset:
+            overridden.append(f"dataset {dataset} (it ran on {recorded.dataset})")
+        data_options = {**dict(recorded.data_options), **data_options}
+        seed = recorded.seed if seed is None else seed
+        taken = ", ".join(
+            [f"seed {recorded.seed}"] + [f"{key}={value}" for key, value in recorded.data_options]
+        )
+        typer.echo(
+            f"--config {config}: the recorded run ({taken})"
+            + (f"; given here: {', '.join(overridden)}" if overridden else ""),
+            err=True,
+        )
     request = RunRequest(
         estimator=estimator,
         dataset=dataset,
-        seed=seed,
+        seed=0 if seed is None else seed,
         config_file=config,
         overrides=tuple(settings_by_estimator(set_ or [], [estimator])[estimator].items()),
-        data_options=tuple(parse_assignments(data or [], "--data").items()),
+        data_options=tuple(data_options.items()),
     )
     with exclusive(out):
         check_writable(out, RUN)  # before the run, not after it
@@ -286,40 +322,24 @@ def rerun_command(
 ) -> None:
     """Run again what a run folder's config.yaml records: estimator, dataset, seed, data
     options and the resolved estimator options."""
-    from datasets.yaml_files import read_yaml_file
     from workbench.run_folder import write_run_folder
-    from workbench.runner import RUN_CONFIG_KEYS, RunRequest, execute
+    from workbench.runner import RunRequest, execute, recorded_run
 
     config_file = Path(run_dir) / "config.yaml"
     if not config_file.is_file():
         raise InputError(f"{run_dir}: not a run folder (no config.yaml)")
-    recorded = read_yaml_file(config_file) or {}
-    if not isinstance(recorded, dict) or not RUN_CONFIG_KEYS <= set(recorded):
+    recorded = recorded_run(config_file)
+    if recorded is None:
         raise InputError(
-            f"{config_file}: not a run folder's config.yaml (needs {sorted(RUN_CONFIG_KEYS)})"
-        )
-    # what `workbench run` wrote: a name for each of the two, a seed as --seed takes it
-    # (a whole number >= 0), data options as a mapping; anything else was edited by hand
-    for key in ("estimator", "dataset"):
-        if not isinstance(recorded[key], str) or not recorded[key].strip():
-            raise InputError(f"{config_file}: {key}: expected a name, got {recorded[key]!r}")
-    seed = recorded["seed"]
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise InputError(
-            f"{config_file}: seed: expected a whole number >= 0 (as --seed takes it), got {seed!r}"
-        )
-    data_options = recorded.get("data_options") or {}
-    if not isinstance(data_options, dict):
-        raise InputError(
-            f"{config_file}: data_options: expected a mapping of option: value, "
-            f"got {data_options!r}"
+            f"{config_file}: not a run folder's config.yaml (needs estimator, dataset, seed, "
+            "config)"
         )
     request = RunRequest(
-        estimator=recorded["estimator"],
-        dataset=recorded["dataset"],
-        seed=seed,
+        estimator=recorded.estimator,
+        dataset=recorded.dataset,
+        seed=recorded.seed,
         config_file=config_file,
-        data_options=tuple((str(k), str(v)) for k, v in data_options.items()),
+        data_options=recorded.data_options,
     )
     with exclusive(out):
         check_writable(out, RUN)
@@ -338,13 +358,28 @@ def config_command(
         ),
     ],
 ) -> None:
-    """Print an estimator's default options as YAML (edit it, pass it with --config)."""
-    import yaml
-
+    """Print an estimator's default options as YAML, each with its description as a comment
+    (edit it, pass it with --config)."""
     from workbench.registry import estimator_entry
 
     defaults = estimator_entry(estimator).load().Config()
-    typer.echo(yaml.safe_dump(defaults.model_dump(mode="json"), sort_keys=False), nl=False)
+    typer.echo(commented_yaml(defaults), nl=False)
+
+
+def commented_yaml(config) -> str:
+    """``config`` (a pydantic model) as YAML, every field preceded by its description as
+    ``#`` comment lines (wrapped at 90 columns); loads back to the same values."""
+    import textwrap
+
+    import yaml
+
+    values = config.model_dump(mode="json")
+    blocks = []
+    for name, field in type(config).model_fields.items():
+        lines = textwrap.wrap(field.description or "", 88) if field.description else []
+        comment = "".join(f"# {line}\n" for line in lines)
+        blocks.append(comment + yaml.safe_dump({name: values[name]}, sort_keys=False))
+    return "".join(blocks)
 
 
 _registered: set[str] = set()

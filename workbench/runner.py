@@ -57,6 +57,62 @@ def resolve_config(
     return build_model(estimator_class.Config, values, f"config of {estimator_class.__name__}")
 
 
+@dataclass(frozen=True)
+class RecordedRun:
+    """What a run folder's ``config.yaml`` records of the run (besides the estimator's
+    resolved options, which ``resolve_config`` takes from the same file)."""
+
+    estimator: str
+    dataset: str
+    seed: int
+    data_options: tuple[tuple[str, str], ...]
+
+
+def recorded_run(config_file: Path) -> RecordedRun | None:
+    """The run a ``config.yaml`` written by ``workbench run`` records, None for a file of
+    estimator options only; ``InputError`` naming the file and field for one edited into
+    something ``workbench run`` would not have written."""
+    config_file = Path(config_file)
+    if not config_file.is_file():
+        raise InputError(f"{config_file}: no such config file")
+    recorded = read_yaml_file(config_file) or {}
+    if not isinstance(recorded, dict) or not RUN_CONFIG_KEYS <= set(recorded):
+        return None
+    for key in ("estimator", "dataset"):
+        if not isinstance(recorded[key], str) or not recorded[key].strip():
+            raise InputError(f"{config_file}: {key}: expected a name, got {recorded[key]!r}")
+    seed = recorded["seed"]
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise InputError(
+            f"{config_file}: seed: expected a whole number >= 0 (as --seed takes it), got {seed!r}"
+        )
+    data_options = recorded.get("data_options") or {}
+    if not isinstance(data_options, dict):
+        raise InputError(
+            f"{config_file}: data_options: expected a mapping of option: value, "
+            f"got {data_options!r}"
+        )
+    if not isinstance(recorded["config"] or {}, dict):
+        raise InputError(
+            f"{config_file}: config: expected a mapping of option: value (the estimator's "
+            "resolved options)"
+        )
+    return RecordedRun(
+        recorded["estimator"],
+        recorded["dataset"],
+        seed,
+        tuple((str(k), _option_text(v)) for k, v in data_options.items()),
+    )
+
+
+def _option_text(value: Any) -> str:
+    """A recorded option value as the text ``--data key=TEXT`` gives (the loader parses
+    it back to the same value)."""
+    import json
+
+    return value if isinstance(value, str) else json.dumps(value)
+
+
 def check_compatible(
     estimator_name: str, estimator_class: type[Estimator], sequence: Sequence
 ) -> None:
