@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.plot_formats import DEFAULT_PLOT_FORMATS
+from workbench.results.experiments import split_experiments
 from workbench.results.runs import RunRecord
 from workbench.results.summary import PairSummary, PlannedPair, summarize
 from workbench.results.tables import write_tables
@@ -45,6 +46,8 @@ def write_report(
     from workbench.report_plots import write_dataset_plots
 
     out = Path(out)
+    records, split = split_experiments(records)  # one row, one experiment
+    notes = [*notes, *split]
     rows = summarize(records, planned, reference)
     if reference is not None and any("ate_over_reference" in row.stats for row in rows):
         notes = [

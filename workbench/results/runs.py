@@ -42,6 +42,12 @@ class RunRecord:
         seed: the dataset seed.
         metrics: the metrics.json dictionary, None when the run failed.
         error: the failure's one line, None when it finished.
+        experiment: what defines the run besides its seed, as sorted ``(key, value)`` text
+            pairs: ``dataset`` (the resolved name), ``data.KEY`` (its options), ``config.KEY``
+            (the estimator's resolved options) and ``revision`` (the code's git revision).
+            Runs of one table row differ in nothing but the seed (``results.summary``).
+            Empty for a failed run, which never resolved its config: it joins the row of its
+            labels.
     """
 
     folder: Path
@@ -52,6 +58,7 @@ class RunRecord:
     seed: int
     metrics: dict[str, Any] | None = field(default=None, compare=False)
     error: str | None = None
+    experiment: tuple[tuple[str, str], ...] = field(default=(), compare=False)
 
     @property
     def finished(self) -> bool:
@@ -105,6 +112,37 @@ def _check_metrics(metrics: dict[str, Any], path: Path) -> None:
         raise InputError(f"{path}: warnings: expected a list of lines, got {warnings!r}")
 
 
+def _text(value: Any) -> str:
+    return value if isinstance(value, str) else json.dumps(value, sort_keys=True)
+
+
+def _experiment(dataset: Any, data: Any, config: Any, revision: Any) -> tuple[tuple[str, str], ...]:
+    """``RunRecord.experiment`` from what a run recorded (non-mappings count as empty)."""
+    pairs = [("dataset", _text(dataset))]
+    for prefix, values in (("data", data), ("config", config)):
+        if isinstance(values, dict):
+            pairs += [(f"{prefix}.{key}", _text(value)) for key, value in values.items()]
+    if revision:
+        pairs.append(("revision", _text(revision)))
+    return tuple(sorted(pairs))
+
+
+def _finished_experiment(folder: Path, metrics: dict[str, Any]) -> tuple[tuple[str, str], ...]:
+    """A finished run's experiment, from its config.yaml (what ran) and metrics.json."""
+    from datasets.yaml_files import read_yaml_file
+
+    config_file = folder / "config.yaml"
+    recorded = read_yaml_file(config_file) if config_file.is_file() else {}
+    if not isinstance(recorded, dict):
+        raise InputError(f"{config_file}: expected a mapping (a run folder's config.yaml)")
+    return _experiment(
+        recorded.get("dataset", metrics.get("dataset")),
+        recorded.get("data_options"),
+        recorded.get("config"),
+        metrics.get("git_revision"),
+    )
+
+
 def read_run(folder: Path) -> RunRecord:
     """The record of one run folder (``InputError`` when it is not one, or when its
     metrics.json or estimate.npz is damaged: ``_check_metrics``,
@@ -125,6 +163,7 @@ def read_run(folder: Path) -> RunRecord:
             estimator_label=str(metrics.get("estimator_label") or metrics.get("estimator")),
             seed=_seed(metrics, folder / METRICS_FILE),
             metrics=metrics,
+            experiment=_finished_experiment(folder, metrics),
         )
     if (folder / ERROR_FILE).is_file():
         request = _read_json(folder / REQUEST_FILE) if (folder / REQUEST_FILE).is_file() else {}
@@ -137,6 +176,7 @@ def read_run(folder: Path) -> RunRecord:
             estimator_label=str(request.get("estimator_label") or request.get("estimator")),
             seed=_seed(request, folder / REQUEST_FILE),
             error=str(failure.get("error")),
+            # unknown (it never resolved its config): it joins the row of its labels
         )
     raise InputError(f"{folder}: not a run folder (no {METRICS_FILE} or {ERROR_FILE})")
 
