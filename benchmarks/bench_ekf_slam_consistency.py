@@ -56,10 +56,10 @@ def main(argv: list[str]) -> None:
         t = pose.t[same]
         by_window = [float(np.nanmean(full[(t >= a) & (t < b)])) for a, b in WINDOWS]
         heading_window = [float(np.nanmean(heading[(t >= a) & (t < b)])) for a, b in WINDOWS]
-        means.append(metrics["nees_pose_mean"])
+        means.append(metrics["nees_pose_per_dof"])
         print(
-            f"{seed:>4} {metrics['ate_rmse_m']:>8.3f} {metrics['nees_pose_mean']:>6.2f} {metrics['nees_pose_inside_fraction']:>6.3f} "
-            f"{metrics['nis_mean']:>5.2f}  {' '.join(f'{v:5.2f}' for v in by_window)}    {' '.join(f'{v:5.2f}' for v in heading_window)}"
+            f"{seed:>4} {metrics['ate_rmse_m']:>8.3f} {metrics['nees_pose_per_dof']:>6.2f} {metrics['nees_pose_inside_fraction']:>6.3f} "
+            f"{metrics['nis_measurement_per_dof']:>5.2f}  {' '.join(f'{v:5.2f}' for v in by_window)}    {' '.join(f'{v:5.2f}' for v in heading_window)}"
         )
     runs = len(seeds)
     low, high = chi2.ppf([0.025, 0.975], runs * 3) / runs

@@ -71,12 +71,12 @@ def main() -> None:
         "association_recall",
         "loop_closures",
         "loop_closure_precision",
-        "nis_mean",
+        "nis_measurement_per_dof",
         "nis_below_95_fraction",
         "landmark_rmse_m",
         "landmarks_mapped",
-        "nees_velocity_mean",
-        "nees_gyro_bias_mean",
+        "nees_velocity_per_dof",
+        "nees_gyro_bias_per_dof",
     )
     for key in keys:
         print(f"  {key}: {metrics.get(key)}")

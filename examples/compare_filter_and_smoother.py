@@ -27,7 +27,11 @@ def main(out: Path) -> None:
         for name in ("ekf-slam", "smoother-isam2")
     }
     table = compare([out / name for name in runs])
-    print(table[["estimator", "ate_rmse_m", "anees_pose", "verdict_pose"]].to_string(index=False))
+    print(
+        table[["estimator", "ate_rmse_m", "anees_pose_per_dof", "verdict_pose"]].to_string(
+            index=False
+        )
+    )
 
     figure, axes = plt.subplots(figsize=(6, 3))
     for name, result in runs.items():

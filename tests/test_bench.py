@@ -51,7 +51,7 @@ def test_tiny_writes_tables_and_plots(uninterrupted: Path) -> None:
         assert record["status"] == "ok" and record["runs"] == str(RUNS)
         assert float(record["ate_rmse_m"]) > 0
         assert float(record["time_per_step_ms_median"]) > 0
-        assert record["anees_pose"] != "" and record["verdict_pose"] == "too few runs"
+        assert record["anees_pose_per_dof"] != "" and record["verdict_pose"] == "too few runs"
     assert len(_metrics_files(uninterrupted)) == 4 * RUNS
     markdown = (uninterrupted / "table.md").read_text()
     assert "| sim:circle | ekf-slam | 2 |" in markdown

@@ -91,13 +91,13 @@ def test_run_writes_the_run_folder(dead_reckoning_run):
         "rpe_trans_rmse_m",
         "rpe_rot_rmse_deg",
         "final_orientation_error_deg",
-        "nees_pose_mean",
-        "nees_velocity_mean",
-        "nees_gyro_bias_mean",
-        "nees_accel_bias_mean",
-        "nees_landmarks_mean",
+        "nees_pose_per_dof",
+        "nees_velocity_per_dof",
+        "nees_gyro_bias_per_dof",
+        "nees_accel_bias_per_dof",
+        "nees_landmarks_per_dof",
         "nees_pose_inside_fraction",
-        "nis_mean",
+        "nis_measurement_per_dof",
         "nis_dof",
         "landmark_rmse_m",
         "steps",
@@ -109,7 +109,7 @@ def test_run_writes_the_run_folder(dead_reckoning_run):
         assert key in metrics, key
     assert metrics["seed"] == 1
     assert metrics["ate_rmse_m"] > 0
-    assert metrics["nis_mean"] is None  # dead reckoning makes no updates
+    assert metrics["nis_measurement_per_dof"] is None  # dead reckoning makes no updates
 
 
 def test_run_folder_tum_files_load_in_evo(dead_reckoning_run):

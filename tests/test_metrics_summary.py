@@ -18,8 +18,8 @@ from workbench.metrics.summary import compute_metrics, smoothed_key
 
 REQUIRED_KEYS = (
     "ate_rmse_m", "ate_rmse_raw_m", "rpe_trans_rmse_m", "rpe_rot_rmse_deg", "final_orientation_error_deg",
-    "nees_pose_mean", "nees_velocity_mean", "nees_gyro_bias_mean", "nees_accel_bias_mean", "nees_landmarks_mean",
-    "nees_pose_inside_fraction", "nis_mean", "nis_dof", "nis_inside_fraction", "landmark_rmse_m", "landmarks_mapped", "landmarks_in_map",
+    "nees_pose_per_dof", "nees_velocity_per_dof", "nees_gyro_bias_per_dof", "nees_accel_bias_per_dof", "nees_landmarks_per_dof",
+    "nees_pose_inside_fraction", "nis_measurement_per_dof", "nis_dof", "nis_inside_fraction", "landmark_rmse_m", "landmarks_mapped", "landmarks_in_map",
     "association_precision", "association_recall", "loop_closures", "loop_closure_precision", "steps",
     "time_per_step_ms_median", "time_per_step_ms_p99", "gps_holdout_rmse_m", "ate_rmse_smoothed_m",
 )  # fmt: skip
@@ -119,18 +119,20 @@ def test_known_errors_give_known_metrics() -> None:
     assert metrics["final_orientation_error_deg"] == pytest.approx(2.0, rel=1e-9)
     last_nees = 1.0 + np.deg2rad(2.0) ** 2 / 0.01 + 0.0  # attitude error adds; position stays 0.1 m
     # The last pose's rotated body frame leaves the 0.1 m position error's norm unchanged.
-    assert metrics["nees_pose_mean"] == pytest.approx((STEPS - 1 + last_nees) / STEPS, rel=1e-6)
-    assert metrics["nees_position_mean"] == pytest.approx(1.0, rel=1e-9)
-    assert metrics["nees_velocity_mean"] == pytest.approx(1.0, rel=1e-9)
-    assert metrics["nees_gyro_bias_mean"] == pytest.approx(0.0, abs=1e-12)
-    assert metrics["nees_accel_bias_mean"] is None
+    assert metrics["nees_pose_per_dof"] == pytest.approx(
+        (STEPS - 1 + last_nees) / STEPS / 6, rel=1e-6
+    )
+    assert metrics["nees_position_per_dof"] == pytest.approx(1.0 / 3, rel=1e-9)
+    assert metrics["nees_velocity_per_dof"] == pytest.approx(1.0 / 3, rel=1e-9)
+    assert metrics["nees_gyro_bias_per_dof"] == pytest.approx(0.0, abs=1e-12)
+    assert metrics["nees_accel_bias_per_dof"] is None
     # NEES 1 with 6 dof lies below chi2.ppf(0.025, 6) = 1.24: never inside.
     assert metrics["nees_pose_inside_fraction"] == 0.0
-    assert metrics["nees_landmarks_mean"] == pytest.approx(1.0, rel=1e-9)
+    assert metrics["nees_landmarks_per_dof"] == pytest.approx(1.0 / 3, rel=1e-9)
     assert metrics["landmark_rmse_m"] == pytest.approx(0.2, rel=1e-9)
     assert metrics["landmarks_mapped"] == 5
     assert metrics["landmarks_in_map"] == 5
-    assert metrics["nis_mean"] == pytest.approx(9.0)
+    assert metrics["nis_measurement_per_dof"] == pytest.approx(9.0 / 2)
     assert metrics["nis_dof"] == 2
     assert metrics["nis_inside_fraction"] == pytest.approx(0.75)
     assert metrics["nis_below_95_fraction"] == pytest.approx(0.75)
@@ -141,7 +143,7 @@ def test_known_errors_give_known_metrics() -> None:
     assert 2.9 < metrics["time_per_step_ms_p99"] <= 3.0
     # Held-out stamps halfway between poses: the estimate (0.1 m off) is interpolated there.
     assert metrics["gps_holdout_rmse_m"] == pytest.approx(0.1, rel=1e-6)
-    assert metrics["ate_rmse_smoothed_m"] is None and metrics["nees_pose_mean_smoothed"] is None
+    assert metrics["ate_rmse_smoothed_m"] is None and metrics["nees_pose_per_dof_smoothed"] is None
 
 
 def test_smoothed_history_fills_the_smoothed_keys() -> None:
@@ -157,7 +159,7 @@ def test_smoothed_history_fills_the_smoothed_keys() -> None:
         replace(causal, smoothed=StateHistory(pose=smoothed_pose)), _sequence(truth)
     )
     assert metrics["ate_rmse_raw_smoothed_m"] == pytest.approx(0.3, rel=1e-9)
-    assert metrics["nees_pose_mean_smoothed"] == pytest.approx(1.0, rel=1e-9)
+    assert metrics["nees_pose_per_dof_smoothed"] == pytest.approx(1.0 / 6, rel=1e-9)
     assert metrics["ate_rmse_raw_m"] == pytest.approx(0.1, rel=1e-9)
     assert smoothed_key("time_per_step_ms") == "time_per_step_smoothed_ms"
 
@@ -177,15 +179,15 @@ def test_robocentric_estimate_without_a_world_pose_and_without_truth() -> None:
         "ate_rmse_m",
         "rpe_trans_rmse_m",
         "final_orientation_error_deg",
-        "nees_pose_mean",
+        "nees_pose_per_dof",
         "nees_pose_inside_fraction",
     ):
         assert metrics[key] is None
-    assert metrics["nees_velocity_mean"] == pytest.approx(1.0, rel=1e-9)
+    assert metrics["nees_velocity_per_dof"] == pytest.approx(1.0 / 3, rel=1e-9)
     assert metrics["steps"] == STEPS
     no_truth = compute_metrics(estimate, Sequence("no-truth", 3, frozenset(), lambda: iter(())))
     json.dumps(no_truth, allow_nan=False)
-    assert no_truth["nees_velocity_mean"] is None and no_truth["association_precision"] is None
+    assert no_truth["nees_velocity_per_dof"] is None and no_truth["association_precision"] is None
     assert no_truth["landmarks_in_map"] is None  # no map at all
 
 
@@ -243,7 +245,7 @@ def test_simulated_scenario_with_a_consistent_oracle_estimate() -> None:
         )
     metrics = compute_metrics(recorder.build(), sequence)
     json.dumps(metrics, allow_nan=False)
-    assert metrics["nees_pose_mean"] == pytest.approx(6.0, rel=0.1)
+    assert metrics["nees_pose_per_dof"] == pytest.approx(1.0, rel=0.1)
     assert metrics["nees_pose_inside_fraction"] > 0.9
     assert metrics["ate_rmse_raw_m"] == pytest.approx(np.sqrt(np.sum(sigmas[3:] ** 2)), rel=0.15)
 
@@ -262,7 +264,7 @@ def test_static_truth_still_gets_an_aligned_ate() -> None:
     drift = 0.01 * np.arange(STEPS)
     assert metrics["ate_rmse_m"] == pytest.approx(np.std(drift), rel=1e-9)
     assert metrics["ate_rmse_raw_m"] == pytest.approx(np.sqrt(np.mean(drift**2)), rel=1e-9)
-    assert metrics["nees_pose_mean"] is None  # no covariance
+    assert metrics["nees_pose_per_dof"] is None  # no covariance
     assert metrics["kitti_translation_percent"] is None
 
 

@@ -31,7 +31,7 @@ def test_run_compare_and_load_runs(tmp_path: Path) -> None:
     second = run("dead-reckoning", "sim:circle", seed=2, data={"duration_s": 2})
     assert second.folder is None and second.metrics["ate_rmse_m"] > first.metrics["ate_rmse_m"]
     table = compare([tmp_path])
-    assert set(table["estimator"]) == {"ekf-slam"} and "anees_pose" in table.columns
+    assert set(table["estimator"]) == {"ekf-slam"} and "anees_pose_per_dof" in table.columns
     runs = load_runs([tmp_path])
     assert list(runs["estimator"]) == ["ekf-slam"] and runs["seed"].iloc[0] == 2
     with pytest.raises(InputError, match="gate_probability"):

@@ -23,14 +23,16 @@ files):
     interval meets one are dropped (KITTI segments, 100 m and longer, keep their trusted
     ends), held-out fixes inside one are not compared.
 consistency (``state_errors.nees_series``: truth looked up at the estimate's times):
-    ``nees_pose_mean`` (dof 6 or 3), ``nees_pose_inside_fraction`` (single-run NEES inside
-    its two-sided 95% chi-square interval), ``nees_attitude_mean``, ``nees_position_mean``,
-    ``nees_velocity_mean``, ``nees_gyro_bias_mean``, ``nees_accel_bias_mean``,
-    ``nees_landmarks_mean`` (per landmark and snapshot, d dof; the final map when no
-    snapshot was recorded). Means skip NaN values (singular covariances).
+    every NEES per degree of freedom (the sum of a block's NEES over the steps it is scored
+    on, over the sum of their dof: 1 when consistent): ``nees_pose_per_dof`` (a pose has 6
+    or 3 dof), ``nees_pose_inside_fraction`` (single-run NEES inside
+    its two-sided 95% chi-square interval), ``nees_attitude_per_dof``, ``nees_position_per_dof``,
+    ``nees_velocity_per_dof``, ``nees_gyro_bias_per_dof``, ``nees_accel_bias_per_dof``,
+    ``nees_landmarks_per_dof`` (per landmark and snapshot, d dof; the final map when no
+    snapshot was recorded). NaN values (singular covariances) are left out.
 innovations: ``nis_per_dof`` (every update's stacked NIS summed over the summed dof: the
     figure comparable across estimators), ``nis_update_inside_fraction`` (updates inside
-    their two-sided 95% band); per associated measurement ``nis_mean``, ``nis_dof`` (None
+    their two-sided 95% band); per associated measurement ``nis_measurement_per_dof``, ``nis_dof`` (None
     when dofs differ), ``nis_inside_fraction`` (two-sided 95% per dof),
     ``nis_below_95_fraction`` (one-sided, Guerreiro eq. (11)).
 map (``Estimate.landmarks`` against ``GroundTruth.landmarks``; estimator ids mapped to true
@@ -96,20 +98,20 @@ ACCURACY_KEYS = (
     "gps_holdout_rmse_m",
 )
 CONSISTENCY_KEYS = (
-    "nees_pose_mean",
+    "nees_pose_per_dof",
     "nees_pose_inside_fraction",
-    "nees_attitude_mean",
-    "nees_position_mean",
-    "nees_velocity_mean",
-    "nees_gyro_bias_mean",
-    "nees_accel_bias_mean",
-    "nees_landmarks_mean",
+    "nees_attitude_per_dof",
+    "nees_position_per_dof",
+    "nees_velocity_per_dof",
+    "nees_gyro_bias_per_dof",
+    "nees_accel_bias_per_dof",
+    "nees_landmarks_per_dof",
 )
 UNIT_SUFFIXES = ("_m", "_deg", "_ms", "_s")
 
 
 def smoothed_key(key: str) -> str:
-    """``ate_rmse_m`` -> ``ate_rmse_smoothed_m``; ``nees_pose_mean`` -> ``nees_pose_mean_smoothed``."""
+    """``ate_rmse_m`` -> ``ate_rmse_smoothed_m``; ``nees_pose_per_dof`` -> ``nees_pose_per_dof_smoothed``."""
     for unit in UNIT_SUFFIXES:
         if key.endswith(unit):
             return key[: -len(unit)] + "_smoothed" + unit
@@ -122,6 +124,17 @@ def _number(value: float | int | None) -> float | None:
         return None
     value = float(value)
     return value if math.isfinite(value) else None
+
+
+def _per_dof(values: np.ndarray, dofs: np.ndarray) -> float | None:
+    """Sum of the finite NEES (or NIS) values over the sum of their dof: 1 when consistent,
+    whatever the blocks' sizes (NaN values, from singular covariances, left out)."""
+    values = np.asarray(values, dtype=float)
+    dofs = np.broadcast_to(np.asarray(dofs, dtype=float), values.shape)
+    finite = np.isfinite(values)
+    if not finite.any() or dofs[finite].sum() <= 0:
+        return None
+    return _number(values[finite].sum() / dofs[finite].sum())
 
 
 def _finite_mean(values: np.ndarray) -> float | None:
@@ -227,9 +240,9 @@ def consistency_metrics(
         if final_series is not None:
             series["landmarks"] = final_series
     for block, values in series.items():
-        key = f"nees_{block}_mean"
+        key = f"nees_{block}_per_dof"
         if key in metrics:
-            metrics[key] = _finite_mean(values.nees)
+            metrics[key] = _per_dof(values.nees, values.dof)
     if "pose" in series:
         metrics["nees_pose_inside_fraction"] = _number(
             inside_fraction(series["pose"].nees, series["pose"].dof)
@@ -253,7 +266,7 @@ def nis_metrics(estimate: Estimate) -> Metrics:
     if values.size == 0:
         return {
             **metrics,
-            "nis_mean": None,
+            "nis_measurement_per_dof": None,
             "nis_dof": None,
             "nis_inside_fraction": None,
             "nis_below_95_fraction": None,
@@ -261,7 +274,7 @@ def nis_metrics(estimate: Estimate) -> Metrics:
     unique = np.unique(dofs)
     return {
         **metrics,
-        "nis_mean": _finite_mean(values),
+        "nis_measurement_per_dof": _per_dof(values, dofs),
         "nis_dof": int(unique[0]) if len(unique) == 1 else None,
         "nis_inside_fraction": _number(inside_fraction(values, dofs)),
         "nis_below_95_fraction": _number(below_fraction(values, dofs)),

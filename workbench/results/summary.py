@@ -8,7 +8,8 @@ NIS series (``results.consistency``). A sweep passes its plan (``PlannedPair``) 
 pair that could not run says n/a with the reason, and one with failed runs says so.
 
 ``summary_frame`` is ``table.csv``: the metrics.json keys (``{key}`` the mean, ``{key}_std``),
-and for each consistency block B ``anees_B`` (per dof), ``anees_B_lower``, ``anees_B_upper``,
+and for each consistency block B ``anees_B_per_dof``, ``anees_B_per_dof_lower``,
+``anees_B_per_dof_upper``,
 ``verdict_B``, ``scored_B`` (causal / smoothed / innovation), ``inside_B`` (fraction of steps
 inside the per-step 95 % band, a diagnostic); ``nis_per_dof`` and ``nis_inside_fraction``
 pooled over every update of every run; cost columns start with ``time_``.
@@ -260,9 +261,9 @@ def summary_frame(rows: list[PairSummary]):
         for block in TABLE_BLOCKS:
             cell = row.cells.get(block)
             statistic = None if cell is None else cell.statistic
-            record[f"anees_{block}"] = None if statistic is None else statistic.value
-            record[f"anees_{block}_lower"] = None if statistic is None else statistic.lower
-            record[f"anees_{block}_upper"] = None if statistic is None else statistic.upper
+            record[f"anees_{block}_per_dof"] = None if statistic is None else statistic.value
+            record[f"anees_{block}_per_dof_lower"] = None if statistic is None else statistic.lower
+            record[f"anees_{block}_per_dof_upper"] = None if statistic is None else statistic.upper
             record[f"verdict_{block}"] = None if statistic is None else statistic.verdict.value
             record[f"scored_{block}"] = None if cell is None else cell.scored
             inside = (
