@@ -106,3 +106,26 @@ def test_integrated_autocorrelation_time_of_independent_and_constant_series() ->
     assert integrated_autocorrelation_time(list(rng.normal(size=(20, 500)))) < 1.3
     constant_per_run = [np.full(200, value) for value in rng.normal(size=20)]
     assert integrated_autocorrelation_time(constant_per_run) > 150
+
+
+def test_innovations_are_judged_from_their_pooled_updates_at_any_run_count() -> None:
+    """One run of white NIS: judged once it pools MIN_POOLED_UPDATES updates (a NIS of 0.3
+    per dof over 500 updates is conservative, 3 optimistic, 1 consistent); fewer updates,
+    or per-step NEES from one run, say too few runs."""
+    from workbench.metrics.verdicts import MIN_POOLED_UPDATES, Verdict, cell_statistic
+
+    rng = np.random.default_rng(0)
+    dof = np.full(500, 2)
+    white = rng.chisquare(2, size=500)
+    verdicts = {
+        scale: cell_statistic([scale * white], [dof], pooled=True).verdict
+        for scale in (0.3, 1.0, 3.0)
+    }
+    assert verdicts == {
+        0.3: Verdict.CONSERVATIVE,
+        1.0: Verdict.CONSISTENT,
+        3.0: Verdict.OPTIMISTIC,
+    }
+    few = MIN_POOLED_UPDATES - 1
+    assert cell_statistic([white[:few]], [dof[:few]], pooled=True).verdict == Verdict.TOO_FEW_RUNS
+    assert cell_statistic([0.3 * white], [dof]).verdict == Verdict.TOO_FEW_RUNS

@@ -318,7 +318,11 @@ def consistency_cell(runs: list[dict[str, StepSeries]], block: str) -> Consisten
     series = [run[key] for run in runs if key in run and len(run[key].t)]
     if not series:
         return None
-    statistic = cell_statistic([s.values for s in series], [s.dof for s in series])
+    # innovations are white under consistency: judged from their pooled updates at any
+    # run count (``verdicts.MIN_POOLED_UPDATES``); per-step NEES needs runs
+    statistic = cell_statistic(
+        [s.values for s in series], [s.dof for s in series], pooled=block == NIS
+    )
     if statistic is None:
         return None
     return ConsistencyCell(block, scored, statistic, average_runs(series))
