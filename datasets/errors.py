@@ -15,3 +15,12 @@ def one_line(error: BaseException) -> str:
     table note or a progress line."""
     text = str(error).strip().splitlines()
     return f"{type(error).__name__}: {text[0] if text else ''}".rstrip(": ")
+
+
+def did_you_mean(name: str, known: list[str] | tuple[str, ...]) -> str:
+    """``" (did you mean 'x'?)"`` for the known name closest to ``name`` (difflib, cutoff
+    0.6), or ``""`` when none is close: a hint for a misspelt name, key, topic or suite."""
+    import difflib
+
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""

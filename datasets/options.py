@@ -10,7 +10,7 @@ from typing import TypeVar
 
 from pydantic import BaseModel, ValidationError
 
-from datasets.errors import InputError
+from datasets.errors import InputError, did_you_mean
 from datasets.yaml_files import yaml_text
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -59,9 +59,17 @@ def build_model(model: type[ModelT], values: dict[str, object], context: str) ->
     try:
         return model.model_validate(values)
     except ValidationError as error:
-        problems = "; ".join(_problem(item) for item in error.errors())
-        known = ", ".join(model.model_fields)
-        raise InputError(f"{context}: {problems} (known keys: {known})") from None
+        items = error.errors()
+        unknown = [item for item in items if item["type"] == "extra_forbidden"]
+        fields = list(model.model_fields)
+        problems = "; ".join(
+            _problem(item)
+            + (did_you_mean(str(item["loc"][0]), fields) if item in unknown and item["loc"] else "")
+            for item in items
+        )
+        # the known keys help a misspelt key; a bad value of a right key needs only itself
+        known = f" (known keys: {', '.join(fields)})" if unknown else ""
+        raise InputError(f"{context}: {problems}{known}") from None
 
 
 def parse_options(model: type[ModelT], options: dict[str, str], context: str) -> ModelT:

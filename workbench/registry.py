@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from datasets.errors import InputError
+from datasets.errors import InputError, did_you_mean
 from datasets.estimate import Estimator
 
 
@@ -161,8 +161,10 @@ def estimator_entry(name: str) -> EstimatorEntry:
     for entry in ESTIMATORS:
         if entry.name == name:
             return entry
-    known = ", ".join(entry.name for entry in ESTIMATORS)
-    raise InputError(f"unknown estimator '{name}' (known: {known})")
+    names = [entry.name for entry in ESTIMATORS]
+    raise InputError(
+        f"unknown estimator '{name}'{did_you_mean(name, names)} (known: {', '.join(names)})"
+    )
 
 
 def split_dataset_name(name: str) -> tuple[str, str | None]:
@@ -184,7 +186,8 @@ def dataset_entry(name: str) -> DatasetEntry:
     known = ", ".join(
         entry.prefix + (f":{entry.argument}" if entry.argument else "") for entry in DATASETS
     )
-    raise InputError(f"unknown dataset '{name}' (known: {known})")
+    hint = did_you_mean(prefix, [entry.prefix for entry in DATASETS])
+    raise InputError(f"unknown dataset '{name}'{hint} (known: {known})")
 
 
 def load_dataset(name: str, seed: int, options: dict[str, str] | None = None):

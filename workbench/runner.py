@@ -30,11 +30,13 @@ def resolve_config(
     estimator_class: type[Estimator],
     config_file: Path | None = None,
     overrides: dict[str, str] | None = None,
+    name: str | None = None,
 ) -> BaseModel:
     """The estimator's config: class defaults, then the YAML file (estimator options, or a
     run folder's ``config.yaml``, whose resolved options it takes; read by
     ``datasets.yaml_files.read_yaml_file``: at most 1 MiB, UTF-8, no anchors, aliases or
-    repeated keys), then ``--set`` overrides."""
+    repeated keys), then ``--set`` overrides. ``name``: the estimator as registered, for
+    errors."""
     values: dict[str, Any] = {}
     if config_file is not None:
         config_file = Path(config_file)
@@ -54,7 +56,10 @@ def resolve_config(
         values.update(loaded)
     for key, text in (overrides or {}).items():
         values[key] = yaml_value(text)
-    return build_model(estimator_class.Config, values, f"config of {estimator_class.__name__}")
+    # errors name the estimator as registered (ekf-slam), not its class (EkfSlam)
+    return build_model(
+        estimator_class.Config, values, f"{name or estimator_class.__name__} options"
+    )
 
 
 @dataclass(frozen=True)
@@ -200,7 +205,9 @@ def execute(
     """Resolve names, load the dataset (unless given), check compatibility and run."""
     entry = estimator_entry(request.estimator)
     estimator_class = entry.load()
-    config = resolve_config(estimator_class, request.config_file, dict(request.overrides))
+    config = resolve_config(
+        estimator_class, request.config_file, dict(request.overrides), request.estimator
+    )
     if sequence is None:
         sequence = load_dataset(request.dataset, request.seed, dict(request.data_options))
     check_compatible(request.estimator, estimator_class, sequence)

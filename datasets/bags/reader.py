@@ -52,7 +52,7 @@ import numpy as np
 
 from datasets.bags.gps import geodetic_to_enu
 from datasets.bags.pointcloud2 import ABSOLUTE_TIME_S, MalformedCloud, decode_pointcloud2
-from datasets.errors import InputError
+from datasets.errors import InputError, did_you_mean
 from datasets.lidar.kiss_icp_odometry import pose_time
 from datasets.lidar.sweep_times import point_times_for, sweep_period
 from datasets.measurements import GpsFix, ImuSample, Measurement, PointCloud
@@ -309,7 +309,10 @@ def _choose(
 ) -> str | None:
     if given:
         if given not in types:
-            raise InputError(f"{path}: no topic '{given}' ({option}); topics: {_listing(types)}")
+            raise InputError(
+                f"{path}: no topic '{given}' ({option}){did_you_mean(given, list(types))}; "
+                f"topics: {_listing(types)}"
+            )
         if types[given] not in wanted:
             raise InputError(
                 f"{path}: topic '{given}' is {types[given]}, not {' or '.join(wanted)} ({option})"

@@ -23,7 +23,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from datasets.errors import InputError
+from datasets.errors import InputError, did_you_mean
 from datasets.options import describe_model, parse_options
 from datasets.rotations import wrap_angle
 from datasets.sequence import NoiseSpec, Sequence
@@ -782,7 +782,8 @@ def load_scenario(argument: str | None, seed: int, options: dict[str, str]) -> S
     """Simulate scenario ``argument`` with noise ``seed`` and ``--data`` options."""
     if argument not in _SCENARIOS:
         raise InputError(
-            f"unknown simulation scenario '{argument}' (known: {', '.join(_SCENARIOS)})"
+            f"unknown simulation scenario '{argument}'{did_you_mean(argument, list(_SCENARIOS))} "
+            f"(known: {', '.join(_SCENARIOS)})"
         )
     model, simulate, _ = _SCENARIOS[argument]
     parsed = parse_options(model, options, f"sim:{argument} --data")
