@@ -114,6 +114,10 @@ class Estimate:
         timing: per-step cost (filled by the runner, which times every estimator alike).
         notes: human-readable remarks the run should report (e.g. "anchors from first
             observation: NEES against truth not comparable").
+        frame_times: times [s] where the data expect a pose, shape (F,): every landmark scan
+            and every relative-pose increment (a lidar frame) the estimator was fed; filled
+            by the runner, as the timing is (``workbench.metrics.summary`` says which frames
+            have no pose). None when not recorded.
     """
 
     causal: StateHistory
@@ -122,6 +126,7 @@ class Estimate:
     landmarks: LandmarkMap | None = None
     timing: StepTiming | None = None
     notes: tuple[str, ...] = ()
+    frame_times: np.ndarray | None = None
 
 
 class Estimator(Protocol):

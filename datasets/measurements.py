@@ -67,6 +67,9 @@ class Odometry:
         velocity: 2-D (v_forward [m/s], omega [rad/s]), shape (2,); 3-D (v[3], omega[3]).
         covariance: covariance of whichever is set, same order, shape (k, k).
         dt: duration of the increment [s] (for ``relative_pose``), else None.
+        frame: the increment ends at a sensor frame (a lidar sweep the front end registered):
+            the data expect a pose at ``t`` (``Estimate.frame_times``); False for wheel
+            odometry, whose samples are motion input only.
     """
 
     t: float
@@ -74,6 +77,7 @@ class Odometry:
     relative_pose: np.ndarray | None = None
     velocity: np.ndarray | None = None
     dt: float | None = None
+    frame: bool = False
     sensor = Sensor.ODOMETRY
 
 

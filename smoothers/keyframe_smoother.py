@@ -204,6 +204,10 @@ class KeyframeSmoother:
         stride = self.config.keyframe_imu_stride
         if stride and self.motion.since_keyframe() >= stride and t > self.keyframe_t[-1]:
             self._open_group(t)
+        if isinstance(measurement, Odometry) and measurement.frame and t > self.keyframe_t[-1]:
+            # a sensor frame (a lidar sweep) with or without landmarks: a pose is expected
+            # there (``Estimate.frame_times``), so it is a keyframe
+            self._open_group(t)
         bridge = self.bridge_interval_s()
         if bridge is not None and t - self.keyframe_t[-1] >= bridge:
             self._open_group(t)

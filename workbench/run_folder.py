@@ -120,6 +120,20 @@ def run_warnings(result: RunResult) -> list[str]:
     )
 
 
+def frames_warning(metrics: dict[str, Any], estimator: str, dataset: str) -> list[str]:
+    """The frames the estimate has no pose at (``metrics.summary.frame_metrics``), if any:
+    a figure or a metric must not pass over them in silence."""
+    missing = metrics.get("frames_without_pose")
+    if not missing:
+        return []
+    times = metrics["frames_without_pose_t"]
+    shown = ", ".join(f"{t:.2f}" for t in times[:5]) + (", ..." if missing > 5 else "")
+    return [
+        f"{estimator} on {dataset}: {missing} of {metrics['frames']} frames (landmark scans or "
+        f"lidar frames) have no pose (t = {shown} s): it estimated none there"
+    ]
+
+
 def divergence_warning(metrics: dict[str, Any], estimator: str, dataset: str) -> list[str]:
     """The run's divergence as a warning line (``workbench.metrics.divergence``), if any."""
     if metrics.get("diverged_at_s") is None:
@@ -191,8 +205,10 @@ def write_run_folder(
         write_atomic(folder / EVENTS_FILE, dump_json(events))
         save_run_consistency(estimate, result.sequence, folder / CONSISTENCY_FILE)
         metrics = compute_metrics(estimate, result.sequence)
-        metrics["warnings"] = run_warnings(result) + divergence_warning(
-            metrics, request.estimator, result.sequence.name
+        metrics["warnings"] = (
+            run_warnings(result)
+            + divergence_warning(metrics, request.estimator, result.sequence.name)
+            + frames_warning(metrics, request.estimator, result.sequence.name)
         )
         metrics.update(run_provenance(result))
         if plot_formats:

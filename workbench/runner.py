@@ -17,6 +17,7 @@ from pydantic import BaseModel
 
 from datasets.errors import InputError
 from datasets.estimate import Estimate, Estimator, StepTiming, missing_sensors
+from datasets.measurements import Sensor
 from datasets.options import build_model, yaml_value
 from datasets.sequence import Sequence
 from datasets.yaml_files import read_yaml_file
@@ -156,18 +157,38 @@ def run_estimator(
     estimator = estimator_class(config, sequence)
     stamps: list[float] = []
     seconds: list[float] = []
+    frames: list[float] = []
+    # a landmark scan is a frame only for an estimator that uses landmarks
+    with_landmarks = any(Sensor.LANDMARKS in option for option in estimator_class.sensor_options)
     clock = time.perf_counter
     for measurement in sequence.measurements():
         start = clock()
         estimator.process(measurement)
         seconds.append(clock() - start)
         stamps.append(measurement.t)
+        if is_frame(measurement, with_landmarks):
+            frames.append(measurement.t)
         if on_step is not None:
             on_step(measurement.t)
     start = clock()
     estimate = estimator.estimate()
     finalize = clock() - start
-    return replace(estimate, timing=StepTiming(np.array(stamps), np.array(seconds), finalize))
+    return replace(
+        estimate,
+        timing=StepTiming(np.array(stamps), np.array(seconds), finalize),
+        frame_times=np.unique(np.array(frames, dtype=float)),
+    )
+
+
+def is_frame(measurement, with_landmarks: bool = True) -> bool:
+    """A measurement after which the data expect a pose: a landmark scan that sighted
+    something (``with_landmarks``: for an estimator that uses them), or a sensor frame's
+    odometry increment (``Odometry.frame``: a lidar sweep, with or without corners); not a
+    wheel-odometry or IMU sample."""
+    from datasets.measurements import LandmarkScan, Odometry
+
+    sighted = isinstance(measurement, LandmarkScan) and measurement.count > 0
+    return (with_landmarks and sighted) or (isinstance(measurement, Odometry) and measurement.frame)
 
 
 @dataclass(frozen=True)

@@ -208,6 +208,7 @@ class KissIcpOdometry:
                 covariance=self._covariance.copy(),
                 relative_pose=np.concatenate([so3_log(relative[:3, :3]), relative[:3, 3]]),
                 dt=t - self._times[-1],
+                frame=True,  # a sweep: the data expect a pose here
             )
         self._times.append(t)
         self._poses.append(pose)

@@ -275,6 +275,10 @@ class SensorBasedSlam:
             if self.use_odometry:
                 self._odometry(measurement)
             self._accumulate_odometry_covariance(measurement, rotation_before)
+            if measurement.frame:
+                # a sensor frame without a scan (a sweep without corners): the pose there is
+                # the Earth pose carried by the motion since the last scan
+                self._record_carried_pose(measurement.t)
 
     # ------------------------------------------------------------------ odometry
     def _accumulate_odometry_covariance(self, odometry: Odometry, rotation: np.ndarray) -> None:
@@ -809,6 +813,31 @@ class SensorBasedSlam:
             self.noise.velocity_m_s,
             self.noise.gyro_bias_rad_s,
             self.noise.gyro_noise_density,
+        )
+
+    def _record_carried_pose(self, t: float) -> None:
+        """The Earth pose composed with the filter's own motion since the last scan (what
+        the next scan's step falls back on without common landmarks), with the same
+        covariance algebra (``EarthErrorCovariance.compose`` on a copy)."""
+        if self.earth is None:
+            return
+        import copy
+
+        earth = self.earth
+        rotation = earth.rotation @ self._motion_rotation
+        position = earth.position + earth.rotation @ self._motion_translation
+        covariance = None
+        if earth.errors is not None:
+            errors = copy.deepcopy(earth.errors)
+            errors.compose(earth.rotation, self._motion_translation, self._motion_covariance())
+            covariance = pose_covariance_to_interface(rotation, errors.pose)
+        self.recorder.pose(
+            t,
+            position,
+            float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+            if self.dimension == 2
+            else quat_wxyz_from_matrix(rotation),
+            covariance,
         )
 
     def _record_pose(self, t: float) -> None:

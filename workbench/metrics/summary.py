@@ -51,6 +51,9 @@ association: ``association_rejected_fraction``, ``association_ambiguous_fraction
 divergence (``workbench.metrics.divergence``, from the estimate alone): ``diverged_at_s``
     (when its sightings left their gates for good, or its position left the mapped area;
     None when it held) and ``divergence`` (the evidence, one line).
+frames (``frame_metrics``): ``frames``, ``frames_without_pose`` and the first of their times
+    ``frames_without_pose_t``: where the data expect a pose (a landmark scan, a lidar frame)
+    and the estimate has none.
 cost: ``steps`` (timing entries = measurements processed; without timing, causal pose
     records), ``time_per_step_ms_median``, ``time_per_step_ms_p99``, ``time_total_s``.
 """
@@ -338,6 +341,34 @@ def association_metrics(estimate: Estimate, ground_truth: GroundTruth | None) ->
     return metrics
 
 
+FRAME_TOLERANCE_S = 0.01
+"""A pose within this of a frame's time [s] is that frame's (evo's pairing tolerance)."""
+
+
+def frame_metrics(estimate: Estimate) -> Metrics:
+    """``frames`` (times where the data expect a pose: ``Estimate.frame_times``),
+    ``frames_without_pose`` (of them, those the scored history has no pose at: the causal
+    one, else the smoothed one) and ``frames_without_pose_t`` (the first 20 of their times
+    [s]); None when the run recorded no frames."""
+    frames = estimate.frame_times
+    if frames is None or len(frames) == 0:
+        return {"frames": None, "frames_without_pose": None, "frames_without_pose_t": None}
+    history = estimate.causal if estimate.causal.pose is not None else estimate.smoothed
+    poses = np.zeros(0) if history is None or history.pose is None else history.pose.t
+    if len(poses):
+        after = np.clip(np.searchsorted(poses, frames), 0, len(poses) - 1)
+        before = np.clip(after - 1, 0, len(poses) - 1)
+        nearest = np.minimum(np.abs(poses[after] - frames), np.abs(poses[before] - frames))
+        missing = nearest > FRAME_TOLERANCE_S
+    else:
+        missing = np.ones(len(frames), dtype=bool)
+    return {
+        "frames": int(len(frames)),
+        "frames_without_pose": int(missing.sum()),
+        "frames_without_pose_t": [float(t) for t in frames[missing][:20]],
+    }
+
+
 def cost_metrics(estimate: Estimate) -> Metrics:
     """Step count and per-step wall-clock time."""
     timing = estimate.timing
@@ -388,6 +419,7 @@ def compute_metrics(estimate: Estimate, sequence: Sequence) -> Metrics:
     metrics.update(map_metrics(estimate.landmarks, ground_truth, mapping))
     metrics.update(association_metrics(estimate, ground_truth))
     metrics.update(divergence_metrics(estimate, sequence))
+    metrics.update(frame_metrics(estimate))
     metrics.update(cost_metrics(estimate))
     return metrics
 

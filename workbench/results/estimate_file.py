@@ -109,6 +109,8 @@ def estimate_arrays(estimate: Estimate) -> dict[str, np.ndarray]:
         arrays[f"diag_{field_name}"] = getattr(diagnostics, field_name)
     for name, values in diagnostics.extras.items():
         arrays[f"extra_{name}"] = values
+    if estimate.frame_times is not None:
+        arrays["frame_times"] = estimate.frame_times
     if estimate.timing is not None:
         arrays["timing_t"] = estimate.timing.t
         arrays["timing_seconds"] = estimate.timing.seconds
@@ -354,4 +356,5 @@ def _estimate(
         landmarks=_read_map(data, "landmarks", Frame.WORLD) if "landmarks_ids" in data else None,
         timing=timing,
         notes=notes,
+        frame_times=data.get("frame_times"),
     )
