@@ -35,7 +35,18 @@ class Anchors:
         self.positions = np.zeros((0, 3))
         self.pending = False
         self.note: str | None = None
+        self.decision: str | None = None  # what anchor_source=auto chose, and why
         known = sequence.known_landmarks
+        if source == "auto":
+            # decided from what the data offer, and said
+            have = 0 if known is None else len(known)
+            source = "known" if have >= count else "first-observation"
+            self.decision = (
+                f"anchors: {count} of the {have} surveyed landmarks {sequence.name} offers"
+                if source == "known"
+                else f"anchors from their first observation: {sequence.name} offers {have} "
+                f"surveyed landmarks, {count} needed (anchor_source=auto)"
+            )
         if source == "known":
             if known is None or len(known) < count:
                 have = 0 if known is None else len(known)

@@ -17,10 +17,12 @@ class AghiliConfig(AssociationOptions, RecordingOptions):
     anchors: int = Field(
         3, ge=1, description="r: number of known anchor landmarks fixing the map (section 2.1)"
     )
-    anchor_source: Literal["known", "first-observation"] = Field(
-        "known",
-        description="'known': the dataset's surveyed positions (NEES against truth meaningful); "
-        "'first-observation': the paper's choice, from the first noisy observation (NEES not comparable)",
+    anchor_source: Literal["auto", "known", "first-observation"] = Field(
+        "auto",
+        description="'auto': 'known' where the dataset offers r surveyed landmarks, else "
+        "'first-observation' (a bag, a scan folder), and the run says which; 'known': the "
+        "dataset's surveyed positions (NEES against truth meaningful); 'first-observation': the "
+        "paper's choice, from the first noisy observation (NEES not comparable)",
     )
     adaptive_noise: bool = Field(True, description="estimate R on line (section 4.4, eq. (42))")
     adaptive_window: int = Field(

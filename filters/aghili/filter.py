@@ -165,6 +165,8 @@ class AghiliFilter:
 
         # anchors (section 2.1)
         self.anchors = Anchors(config.anchors, config.anchor_source, sequence)
+        if self.anchors.decision is not None:
+            self.notes.append(self.anchors.decision)
         if self.anchors.note is not None:
             self.notes.append(self.anchors.note)
         known = sequence.known_landmarks
