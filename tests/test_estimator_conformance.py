@@ -10,14 +10,19 @@ decision per sighting with a reason for every sighting not used, and timing.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from pydantic import BaseModel
 
+from datasets.errors import InputError
 from datasets.estimate import AssociationDecision, Estimate
 from datasets.estimator_options import AssociationOptions, RecordingOptions
 from datasets.measurements import LandmarkScan, Sensor
+from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
+from filters.dead_reckoning import DeadReckoning
 from workbench.registry import ESTIMATORS, load_dataset
 from workbench.runner import is_compatible, resolve_config, run_estimator
 
@@ -81,7 +86,59 @@ def test_every_registered_estimator_declares_the_protocol() -> None:
 @pytest.mark.parametrize(("estimator", "dataset", "options"), _cases())
 def test_estimate_is_well_formed(estimator: str, dataset: str, options: dict) -> None:
     estimator_class = next(entry for entry in ESTIMATORS if entry.name == estimator).load()
-    sequence = load_dataset(dataset, 0, options)
+    check_estimator(estimator_class, load_dataset(dataset, 0, options))
+
+
+def _example(name: str):
+    """A module of ``examples/`` (not a package: loaded from its file)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "examples" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"examples_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def check_sequence(sequence: Sequence) -> None:
+    """What every dataset owes the estimators: a time-ordered stream of the sensors it
+    declares (a fresh iterator per pass), an initial state, truth in time order."""
+    first = [m.t for m in sequence.measurements()]
+    assert first and np.all(np.diff(first) >= 0), "time-ordered stream"
+    assert [m.t for m in sequence.measurements()] == first, "each pass the same stream"
+    assert {m.sensor for m in sequence.measurements()} <= set(sequence.sensors)
+    assert sequence.dimension in (2, 3) and sequence.initial_state is not None
+    truth = sequence.ground_truth
+    if truth is not None and truth.pose is not None:
+        assert np.all(np.diff(truth.pose.t) > 0) and truth.pose.dimension == sequence.dimension
+
+
+def test_the_templates_pass_the_conformance_test() -> None:
+    """``examples/minimal_estimator.py`` and ``examples/minimal_dataset.py``, copied from the
+    README, pass what every registered estimator and dataset pass; the estimator equals
+    dead reckoning's odometry mode on its own dataset (the same model)."""
+    estimator_class = _example("minimal_estimator").MinimalOdometry
+    dataset = _example("minimal_dataset")
+    sequence = dataset.load(None, 3, {"duration_s": "5"})
+    check_sequence(sequence)
+    with pytest.raises(InputError, match="duraton_s"):
+        dataset.load(None, 0, {"duraton_s": "5"})
+    for case in (
+        sequence,
+        load_dataset("sim:guerreiro-loop", 0, {"duration_s": "5", "odometry": "true"}),
+    ):
+        check_sequence(case)
+        estimate = check_estimator(estimator_class, case)
+        reference = run_estimator(DeadReckoning, resolve_config(DeadReckoning), case).causal.pose
+        np.testing.assert_allclose(estimate.causal.pose.positions, reference.positions, atol=1e-12)
+        np.testing.assert_allclose(
+            estimate.causal.pose.covariances, reference.covariances, atol=1e-15
+        )
+
+
+def check_estimator(estimator_class, sequence: Sequence) -> Estimate:
+    """Run ``estimator_class`` with its defaults on ``sequence`` and check its ``Estimate``
+    (module docstring); returns it."""
     estimate = run_estimator(estimator_class, resolve_config(estimator_class), sequence)
     assert isinstance(estimate, Estimate)
     d = sequence.dimension
@@ -138,3 +195,4 @@ def test_estimate_is_well_formed(estimator: str, dataset: str, options: dict) ->
         for t in np.unique(diagnostics.scan_nis_t):
             stacked = diagnostics.scan_nis_dof[diagnostics.scan_nis_t == t].sum()
             assert diagnostics.nis_dof[diagnostics.nis_t == t].sum() == stacked, t
+    return estimate
