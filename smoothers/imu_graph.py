@@ -43,7 +43,7 @@ from smoothers.covariances import (
     vector_covariance,
 )
 from smoothers.held_input import held_interval
-from smoothers.initialization import InitialPriors
+from smoothers.priors import InitialPriors
 
 
 @dataclass(frozen=True)
@@ -271,10 +271,11 @@ class ImuMotion:
             np.asarray(sample.accel, dtype=float),
         )
 
-    def add(self, sample: ImuSample) -> None:
+    def add(self, sample: ImuSample) -> bool:
+        """Take one IMU sample; False for a repeat of the previous sample's time."""
         if not (np.all(np.isfinite(sample.gyro)) and np.all(np.isfinite(sample.accel))):
             raise InputError(f"non-finite IMU sample at t={sample.t:.6f} s")
-        self.integrator.add(sample.t, sample.gyro, sample.accel)
+        return self.integrator.add(sample.t, sample.gyro, sample.accel)
 
     def initial(
         self, start: InitialState, priors: InitialPriors

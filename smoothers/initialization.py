@@ -18,43 +18,13 @@ than LM from the incremental pass on a run where dead reckoning drifts.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import gtsam
 import numpy as np
 
-from datasets.errors import InputError
-
-if TYPE_CHECKING:  # the motion models import this module's priors
-    from smoothers.imu_graph import ImuMotion
-    from smoothers.planar_graph import PlanarMotion
-
-
-@dataclass(frozen=True)
-class InitialPriors:
-    """Standard deviations of the priors on keyframe 0 (GTSAM tangent coordinates).
-
-    Attributes:
-        position_sigma_m: [m] per axis.
-        rotation_sigma_rad: [rad] per axis (2-D: heading).
-        velocity_sigma_m_s: [m/s] per axis.
-        gyro_bias_sigma_rad_s: [rad/s] per axis.
-        accel_bias_sigma_m_s2: [m/s^2] per axis (3-D only).
-    """
-
-    position_sigma_m: float
-    rotation_sigma_rad: float
-    velocity_sigma_m_s: float
-    gyro_bias_sigma_rad_s: float
-    accel_bias_sigma_m_s2: float
-
-    def __post_init__(self) -> None:
-        for name, value in self.__dict__.items():
-            if not value > 0.0:
-                raise InputError(
-                    f"initial prior {name} must be positive (a zero sigma makes the system singular), got {value}"
-                )
+if TYPE_CHECKING:
+    from smoothers.motion_model import MotionModel
 
 
 def levenberg_marquardt(
@@ -73,7 +43,7 @@ def levenberg_marquardt(
 
 def dead_reckoning_values(
     start: gtsam.Values,
-    motion: ImuMotion | PlanarMotion,
+    motion: MotionModel,
     keyframes: int,
     first_sightings: dict[int, tuple[int, np.ndarray]],
 ) -> gtsam.Values:

@@ -168,7 +168,7 @@ class KeyframeSmoother:
         self.clock.advance(t, type(measurement).__name__)
         if self.group is not None and t > self.group.t:
             if self.motion.accepts(measurement):
-                self.motion.look_ahead(measurement)  # type: ignore[arg-type]
+                self.motion.look_ahead(measurement)
             self._commit_group()
         if self.motion.accepts(measurement):
             self._add_motion(measurement, t)
@@ -194,13 +194,8 @@ class KeyframeSmoother:
         if t < self.start.t and isinstance(measurement, Odometry):
             if measurement.relative_pose is not None:
                 return  # an increment ending before the start moves no state we have
-        if isinstance(measurement, ImuSample):
-            before = self.motion.integrator.held_t  # type: ignore[union-attr]
-            self.motion.add(measurement)  # type: ignore[arg-type]
-            if before == measurement.t:
-                self.recorder.event(t, "duplicate_imu_sample_skipped")
-        else:
-            self.motion.add(measurement)  # type: ignore[arg-type]
+        if not self.motion.add(measurement) and isinstance(measurement, ImuSample):
+            self.recorder.event(t, "duplicate_imu_sample_skipped")
         stride = self.config.keyframe_imu_stride
         if stride and self.motion.since_keyframe() >= stride and t > self.keyframe_t[-1]:
             self._open_group(t)

@@ -16,9 +16,8 @@ import numpy as np
 
 from datasets.estimate import EstimateRecorder
 from datasets.state import Frame, LandmarkMap, StateHistory
-from smoothers.imu_graph import ImuMotion
 from smoothers.landmark_book import MapLandmark
-from smoothers.planar_graph import PlanarMotion
+from smoothers.motion_model import MotionModel
 
 
 class WindowExports:
@@ -30,7 +29,7 @@ class WindowExports:
             moment its variable left the window (the latest such variable).
     """
 
-    def __init__(self, motion: ImuMotion | PlanarMotion, dimension: int) -> None:
+    def __init__(self, motion: MotionModel, dimension: int) -> None:
         self.motion = motion
         self.dimension = dimension
         self.keyframes: set[int] = set()

@@ -20,8 +20,9 @@ from datasets.measurements import Sensor
 from datasets.sequence import Sequence
 from smoothers.config import SmootherConfig
 from smoothers.imu_graph import ImuMotion, ImuNoise
-from smoothers.initialization import InitialPriors
+from smoothers.motion_model import MotionModel
 from smoothers.planar_graph import PlanarMotion
+from smoothers.priors import InitialPriors
 from smoothers.spatial_odometry import SpatialOdometryMotion
 
 DEFAULT_GYRO_BIAS_SIGMA_RAD_S = 0.01
@@ -47,9 +48,7 @@ def initial_priors(config: SmootherConfig, sequence: Sequence) -> InitialPriors:
     )
 
 
-def motion_model(
-    config: SmootherConfig, sequence: Sequence
-) -> ImuMotion | PlanarMotion | SpatialOdometryMotion:
+def motion_model(config: SmootherConfig, sequence: Sequence) -> MotionModel:
     """The motion model the sequence's dimension and sensors call for (module docstring)."""
     c = config
     if sequence.dimension == 3 and Sensor.IMU not in sequence.sensors:

@@ -65,7 +65,7 @@ from datasets.sequence import InitialState
 from datasets.state import BlockName, Frame
 from smoothers.covariances import MarginalSource, pose_covariance, vector_covariance
 from smoothers.held_input import held_interval
-from smoothers.initialization import InitialPriors
+from smoothers.priors import InitialPriors
 
 
 def compose_increment(
@@ -377,13 +377,14 @@ class PlanarMotion:
             rate = float(np.asarray(measurement.rate, dtype=float).ravel()[-1])
             self.gyro.lookahead = (float(measurement.t), rate)
 
-    def add(self, measurement: GyroSample | Odometry) -> None:
+    def add(self, measurement: GyroSample | Odometry) -> bool:
         if isinstance(measurement, GyroSample):
             if not np.all(np.isfinite(measurement.rate)):
                 raise InputError(f"non-finite gyro sample at t={measurement.t:.6f} s")
             self.gyro.add(measurement)
         else:
             self.odometry.add(measurement)
+        return True
 
     def initial(
         self, start: InitialState, priors: InitialPriors

@@ -19,10 +19,9 @@ import numpy as np
 from datasets.estimate import EstimateRecorder
 from datasets.state import Frame, LandmarkMap, StateHistory
 from smoothers.covariances import symmetric
-from smoothers.imu_graph import ImuMotion
 from smoothers.joint_marginals import JointQuery
 from smoothers.landmark_book import MapLandmark
-from smoothers.planar_graph import PlanarMotion
+from smoothers.motion_model import MotionModel
 
 KEYFRAMES_PER_MARGINAL_QUERY = 32
 """Keyframes whose states share one batched joint marginal query in the smoothed history."""
@@ -57,7 +56,7 @@ def landmark_map(
 
 
 def smoothed_history(
-    motion: ImuMotion | PlanarMotion,
+    motion: MotionModel,
     keyframe_t: list[float],
     values: gtsam.Values,
     joint: JointQuery,

@@ -22,8 +22,8 @@ from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from datasets.sequence import InitialState
 from smoothers.covariances import MarginalSource, pose_covariance
 from smoothers.imu_graph import navstate_prior_sigmas
-from smoothers.initialization import InitialPriors
 from smoothers.odometry_factors import RelativePoseAccumulator
+from smoothers.priors import InitialPriors
 
 
 class SpatialOdometryMotion:
@@ -50,13 +50,14 @@ class SpatialOdometryMotion:
     def look_ahead(self, measurement: Odometry) -> None:
         """Increments are composed as they come; the next one is not needed."""
 
-    def add(self, measurement: Odometry) -> None:
+    def add(self, measurement: Odometry) -> bool:
         if measurement.relative_pose is None:
             raise InputError(
                 f"odometry at t={measurement.t:.6f} s is a velocity; the 3-D smoother composes "
                 "relative poses"
             )
         self.odometry.add(measurement)
+        return True
 
     def initial(
         self, start: InitialState, priors: InitialPriors
