@@ -283,7 +283,7 @@ def figures(include: set[str] | None = None) -> dict[str, float | None]:
 
     def smoother(name: str, *args: object) -> Callable[[], float]:
         def measure() -> float:
-            from smoothers import speed as smoother_speed  # GTSAM only when asked for
+            from workbench.speed import smoothers as smoother_speed  # GTSAM only when asked
 
             return getattr(smoother_speed, name)(*args)
 

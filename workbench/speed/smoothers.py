@@ -1,4 +1,5 @@
-"""Speed figures of the smoothers for ``workbench bench-speed`` (``workbench.speed``).
+"""Speed figures of the smoothers for ``workbench bench-speed`` (``workbench.speed``), kept
+in the application, not in the ``smoothers`` library.
 
 The scene (``benchmarks/bench_smoother.py``'s landmark scaling): ``sim:circle`` (100 Hz IMU,
 10 Hz scans with ids) with 200 landmarks around the circle, 155-160 of them in view at every
