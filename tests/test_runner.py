@@ -44,3 +44,21 @@ def test_config_file_then_set_overrides(tmp_path):
 def test_bad_config_value_names_key(tmp_path):
     with pytest.raises(InputError, match="max_gap_s"):
         resolve_config(DeadReckoning, None, {"max_gap_s": "-1"})
+
+
+def test_an_estimator_never_sees_the_ground_truth() -> None:
+    """The runner builds every estimator on a view of the sequence without its truth."""
+    from workbench.registry import load_dataset
+    from workbench.runner import run_estimator
+
+    seen = []
+
+    class Spy(DeadReckoning):
+        def __init__(self, config, sequence) -> None:
+            seen.append(sequence.ground_truth)
+            super().__init__(config, sequence)
+
+    sequence = load_dataset("sim:circle", 0, {"duration_s": "1"})
+    assert sequence.ground_truth is not None
+    run_estimator(Spy, resolve_config(DeadReckoning), sequence)
+    assert seen == [None]

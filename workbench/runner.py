@@ -153,8 +153,10 @@ def run_estimator(
     sequence: Sequence,
     on_step: Callable[[float], None] | None = None,
 ) -> Estimate:
-    """Feed the sequence to a fresh estimator and return its ``Estimate`` with timing."""
-    estimator = estimator_class(config, sequence)
+    """Feed the sequence to a fresh estimator and return its ``Estimate`` with timing. The
+    estimator is built on a view of the sequence without its ground truth."""
+    # the estimator sees the data, never the truth it is scored against
+    estimator = estimator_class(config, replace(sequence, ground_truth=None))
     stamps: list[float] = []
     seconds: list[float] = []
     frames: list[float] = []
