@@ -322,10 +322,11 @@ def rerun_command(
 ) -> None:
     """Run again what a run folder's config.yaml records: estimator, dataset, seed, data
     options and the resolved estimator options."""
+    from workbench.run_files import CONFIG_FILE
     from workbench.run_folder import write_run_folder
     from workbench.runner import RunRequest, execute, recorded_run
 
-    config_file = Path(run_dir) / "config.yaml"
+    config_file = Path(run_dir) / CONFIG_FILE
     if not config_file.is_file():
         raise InputError(f"{run_dir}: not a run folder (no config.yaml)")
     recorded = recorded_run(config_file)

@@ -32,11 +32,19 @@ import yaml
 
 from datasets.trajectory_io import save_npz_atomic, write_atomic, write_kitti, write_tum
 from workbench.evo_results import write_evo_results
-from workbench.results.consistency import CONSISTENCY_FILE, save_run_consistency
-from workbench.results.estimate_file import ESTIMATE_FILE, EVENTS_FILE, estimate_arrays
+from workbench.results.consistency import save_run_consistency
+from workbench.results.estimate_file import estimate_arrays
+from workbench.run_files import (
+    CONFIG_FILE,
+    CONSISTENCY_FILE,
+    ERROR_FILE,
+    ESTIMATE_FILE,
+    EVENTS_FILE,
+    METRICS_FILE,
+    REQUEST_FILE,
+)
 from workbench.runner import RunResult
 
-METRICS_FILE = "metrics.json"
 _TRACKED_PACKAGES = ("gtsam", "numpy", "scipy", "kiss-icp", "rosbags", "pydantic", "slam-workbench")
 
 
@@ -169,7 +177,7 @@ def write_run_folder(
             "dataset_metadata": result.sequence.metadata,
             "config": result.config.model_dump(mode="json"),
         }
-        write_atomic(folder / "config.yaml", yaml.safe_dump(resolved, sort_keys=True))
+        write_atomic(folder / CONFIG_FILE, yaml.safe_dump(resolved, sort_keys=True))
         for name, content in (extra_files or {}).items():
             write_atomic(folder / name, dump_json(content))
         estimate = result.estimate
@@ -231,7 +239,6 @@ def write_failed_run(
     """A failed run's folder: the request it failed on (``bench_request.json``) and the
     error (``error.json``), which ``workbench.results`` reads as a failed row."""
     from workbench.folder_swap import replaced_as_a_whole
-    from workbench.results.runs import ERROR_FILE, REQUEST_FILE
 
     with replaced_as_a_whole(Path(folder)) as staging:
         write_atomic(staging / REQUEST_FILE, dump_json(request))

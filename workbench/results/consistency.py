@@ -39,7 +39,6 @@ from workbench.metrics.state_errors import (
 )
 from workbench.metrics.verdicts import CellStatistic, cell_statistic
 
-CONSISTENCY_FILE = "consistency.npz"
 HISTORIES = ("causal", "smoothed")
 SERIES_BLOCKS = (
     "pose",

@@ -33,10 +33,10 @@ from datasets.errors import InputError, one_line
 from datasets.estimate import Diagnostics, Estimate, Event, StepTiming
 from datasets.state import BlockName, Frame, LandmarkMap, StateBlock, StateHistory
 from datasets.trajectory import Trajectory
+from workbench.run_files import ESTIMATE_FILE, EVENTS_FILE
 
 FORMAT_VERSION = 2
-ESTIMATE_FILE = "estimate.npz"
-EVENTS_FILE = "events.json"
+
 DIAGNOSTIC_FIELDS = (
     "nis_t",
     "nis",

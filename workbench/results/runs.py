@@ -18,16 +18,19 @@ from typing import Any
 
 from datasets.errors import InputError, one_line
 from workbench.results.consistency import (
-    CONSISTENCY_FILE,
     ErrorSeries,
     StepSeries,
     load_error_series,
     load_run_consistency,
 )
-
-METRICS_FILE = "metrics.json"
-ERROR_FILE = "error.json"
-REQUEST_FILE = "bench_request.json"
+from workbench.run_files import (
+    CONFIG_FILE,
+    CONSISTENCY_FILE,
+    ERROR_FILE,
+    ESTIMATE_FILE,
+    METRICS_FILE,
+    REQUEST_FILE,
+)
 
 
 @dataclass(frozen=True)
@@ -131,7 +134,7 @@ def _finished_experiment(folder: Path, metrics: dict[str, Any]) -> tuple[tuple[s
     """A finished run's experiment, from its config.yaml (what ran) and metrics.json."""
     from datasets.yaml_files import read_yaml_file
 
-    config_file = folder / "config.yaml"
+    config_file = folder / CONFIG_FILE
     recorded = read_yaml_file(config_file) if config_file.is_file() else {}
     if not isinstance(recorded, dict):
         raise InputError(f"{config_file}: expected a mapping (a run folder's config.yaml)")
@@ -147,7 +150,7 @@ def read_run(folder: Path) -> RunRecord:
     """The record of one run folder (``InputError`` when it is not one, or when its
     metrics.json or estimate.npz is damaged: ``_check_metrics``,
     ``estimate_file.check_estimate_file``)."""
-    from workbench.results.estimate_file import ESTIMATE_FILE, check_estimate_file
+    from workbench.results.estimate_file import check_estimate_file
 
     folder = Path(folder)
     if (folder / METRICS_FILE).is_file():

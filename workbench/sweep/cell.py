@@ -13,7 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from datasets.errors import one_line
-from workbench.sweep.plan import REQUEST_FILE, Cell
+from workbench.run_files import REQUEST_FILE
+from workbench.sweep.plan import Cell
 
 
 @dataclass(frozen=True)

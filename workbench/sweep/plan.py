@@ -15,14 +15,11 @@ from typing import TYPE_CHECKING, Any
 
 from datasets.errors import InputError, one_line
 from workbench.results.summary import PlannedPair
+from workbench.run_files import METRICS_FILE, REQUEST_FILE
 from workbench.suites import DatasetSpec, EstimatorSpec, Suite, available_parts, prepare_dataset
 
 if TYPE_CHECKING:
     from workbench.sweep.backends import Backend
-
-REQUEST_FILE = "bench_request.json"
-ERROR_FILE = "error.json"
-METRICS_FILE = "metrics.json"  # run_folder.METRICS_FILE, without importing matplotlib here
 
 
 @dataclass(frozen=True)
