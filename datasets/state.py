@@ -154,6 +154,47 @@ class StateHistory:
 
 
 @dataclass(frozen=True)
+class Relations:
+    """Relative poses between pairs of times, obtained independently of any estimator (the
+    "relations" of Kümmerle et al., "On measuring the accuracy of SLAM algorithms",
+    Autonomous Robots 27(4), 2009): relation r is the pose at ``times[r, 1]`` in the frame
+    of the pose at ``times[r, 0]``. The workbench reads and scores them (its relations
+    metric); no loader needs to know them.
+
+    Attributes:
+        times: (t1, t2) [s], shape (R, 2), t1 != t2 (either order).
+        poses: planar, shape (R, 3): [x [m], y [m], yaw [rad]]; or spatial, shape (R, 6):
+            [x, y, z [m], roll, pitch, yaw [rad]], rotation Rz(yaw) Ry(pitch) Rx(roll).
+        source: where they were read from (a file path), for messages.
+        max_diff_s: stamp tolerance [s] to score them with, or None for the scorer's
+            default.
+    """
+
+    times: np.ndarray
+    poses: np.ndarray
+    source: str = ""
+    max_diff_s: float | None = None
+
+    def __post_init__(self) -> None:
+        count = len(self.times)
+        if np.shape(self.times) != (count, 2):
+            raise ValueError(f"Relations times must be (R, 2), got {np.shape(self.times)}")
+        if np.ndim(self.poses) != 2 or np.shape(self.poses) not in ((count, 3), (count, 6)):
+            raise ValueError(
+                f"Relations poses must be (R, 3) or (R, 6) with R={count}, "
+                f"got {np.shape(self.poses)}"
+            )
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    @property
+    def dimension(self) -> int:
+        """2 for planar relations [x, y, yaw], 3 for spatial ones."""
+        return 2 if self.poses.shape[1] == 3 else 3
+
+
+@dataclass(frozen=True)
 class GroundTruth:
     """What the source knows to be true; any part may be missing (None / empty).
 
@@ -170,6 +211,9 @@ class GroundTruth:
         excluded: time intervals where the truth is not trustworthy
             (``datasets.truth_quality.assess_truth``): the metrics score nothing inside them
             and never interpolate the truth across them. Empty: all of it is trusted.
+        relations: relative poses between pairs of times (``Relations``), or None. No
+            loader fills it: the workbench attaches a relations file given with any
+            dataset (``--data relations=FILE``).
     """
 
     history: StateHistory
@@ -178,6 +222,7 @@ class GroundTruth:
     scan_ids: tuple[tuple[float, np.ndarray], ...] = ()
     held_out_positions: tuple[np.ndarray, np.ndarray] | None = None
     excluded: tuple[TruthInterval, ...] = ()
+    relations: Relations | None = None
 
     @property
     def pose(self) -> Trajectory | None:

@@ -100,20 +100,7 @@ def read_tum(path: str | Path) -> Trajectory:
         if not stripped or stripped.startswith("#"):
             continue
         fields = stripped.replace(",", " ").split()
-        if len(fields) != 8:
-            raise InputError(
-                f"{path}:{line_number}: expected 8 numbers (t x y z qx qy qz qw), got {len(fields)}"
-            )
-        try:
-            values = [float(field) for field in fields]
-        except ValueError as error:
-            raise InputError(f"{path}:{line_number}: not a number ({error})") from None
-        if not np.all(np.isfinite(values)):
-            raise InputError(f"{path}:{line_number}: non-finite value")
-        if max(abs(v) for v in values[1:4]) > MAX_POSITION_M:
-            raise InputError(
-                f"{path}:{line_number}: position beyond {MAX_POSITION_M:g} m from the origin"
-            )
+        values = _numeric_row(path, line_number, fields, "t x y z qx qy qz qw", (1, 2, 3))
         if rows and values[0] <= rows[-1][0]:
             raise InputError(
                 f"{path}:{line_number}: time {values[0]!r} is not after the previous pose's "
@@ -149,21 +136,7 @@ def read_kitti(path: str | Path, t: np.ndarray | None = None) -> Trajectory:
     for line_number, line in text_lines(path, "KITTI pose file"):
         if not line.strip():
             continue
-        fields = line.split()
-        if len(fields) != 12:
-            raise InputError(
-                f"{path}:{line_number}: expected 12 numbers (3x4 pose), got {len(fields)}"
-            )
-        try:
-            values = [float(field) for field in fields]
-        except ValueError as error:
-            raise InputError(f"{path}:{line_number}: not a number ({error})") from None
-        if not np.all(np.isfinite(values)):
-            raise InputError(f"{path}:{line_number}: non-finite value")
-        if max(abs(values[3]), abs(values[7]), abs(values[11])) > MAX_POSITION_M:
-            raise InputError(
-                f"{path}:{line_number}: position beyond {MAX_POSITION_M:g} m from the origin"
-            )
+        values = _numeric_row(path, line_number, line.split(), "3x4 pose", (3, 7, 11), 12)
         rotation = np.array(values).reshape(3, 4)[:, :3]
         if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-3):
             raise InputError(f"{path}:{line_number}: the 3x3 block is not a rotation")
@@ -225,3 +198,32 @@ def save_npz_atomic(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)
     return write_atomic(path, buffer.getvalue())
+
+
+def _numeric_row(
+    path: Path,
+    line_number: int,
+    fields: list[str],
+    layout: str,
+    position_columns: tuple[int, int, int],
+    count: int | None = None,
+) -> list[float]:
+    """One pose line's numbers, checked: ``count`` of them (default: one per name in
+    ``layout``), all finite, the position (``position_columns``) within ``MAX_POSITION_M``
+    of the origin; ``InputError`` naming the file and line otherwise."""
+    expected = len(layout.split()) if count is None else count
+    if len(fields) != expected:
+        raise InputError(
+            f"{path}:{line_number}: expected {expected} numbers ({layout}), got {len(fields)}"
+        )
+    try:
+        values = [float(field) for field in fields]
+    except ValueError as error:
+        raise InputError(f"{path}:{line_number}: not a number ({error})") from None
+    if not np.all(np.isfinite(values)):
+        raise InputError(f"{path}:{line_number}: non-finite value")
+    if max(abs(values[column]) for column in position_columns) > MAX_POSITION_M:
+        raise InputError(
+            f"{path}:{line_number}: position beyond {MAX_POSITION_M:g} m from the origin"
+        )
+    return values

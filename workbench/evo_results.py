@@ -21,13 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.errors import InputError
-from datasets.trajectory import Trajectory
 from datasets.trajectory_io import write_atomic
-from datasets.truth_quality import TruthInterval, excluded_mask
-from workbench.metrics.ate import ate_errors, error_statistics, paired_trajectories
-from workbench.metrics.rpe import rpe_errors
-from workbench.metrics.timestamps import straddles, trusted_samples
+from workbench.metrics.ate import error_statistics
+from workbench.metrics.summary import ScoredPairs
 
 MIN_POSES = 3
 """Fewer paired poses than this give no result (an alignment needs three)."""
@@ -52,53 +48,32 @@ def result_zip(info: dict[str, str], errors: np.ndarray, timestamps: np.ndarray)
     return buffer.getvalue()
 
 
-def write_evo_results(
-    folder: Path,
-    reference: Trajectory,
-    estimate: Trajectory,
-    name: str,
-    suffix: str = "",
-    excluded: tuple[TruthInterval, ...] = (),
-) -> list[str]:
-    """Write ``ape{suffix}.zip`` and ``rpe{suffix}.zip`` into ``folder``, the estimate
+def write_evo_results(folder: Path, scored: ScoredPairs, name: str, suffix: str = "") -> list[str]:
+    """Write ``ape{suffix}.zip`` and ``rpe{suffix}.zip`` into ``folder`` from the pairs the
+    run's metrics.json is computed on (``workbench.metrics.summary.scored_pairs``: one
+    computation for both, exclusions and non-finite truth rows included), the estimate
     labelled ``name`` (``evo_res`` wants the labels of the results it compares distinct);
-    returns the files written (none when fewer than ``MIN_POSES`` poses pair with the
-    reference). ``excluded``: the truth's untrusted intervals (``GroundTruth.excluded``),
-    scored nowhere."""
-    try:
-        ref_paired, est_paired = paired_trajectories(trusted_samples(reference, excluded), estimate)
-    except InputError:
+    returns the files written (none when fewer than ``MIN_POSES`` poses pair)."""
+    if len(scored.estimate) < MIN_POSES:
         return []
-    if excluded:
-        inside = np.flatnonzero(~excluded_mask(est_paired.t, excluded))
-        ref_paired, est_paired = ref_paired.select(inside), est_paired.select(inside)
-    if len(est_paired) < MIN_POSES:
-        return []
-    align = "se3" if estimate.dimension == 3 else "se2"
-    label = "SE(3)" if align == "se3" else "SE(2)"
-    # as metrics.json's ATE: on a straight drive the aligning rotation is not unique, but the
-    # minimal residual (the ATE) is (workbench.metrics.alignment.umeyama)
-    errors, _, _ = ate_errors(ref_paired, est_paired, align, allow_degenerate=True)
+    label = "SE(3)" if scored.align == "se3" else "SE(2)"
     ape = {
         "title": f"APE w.r.t. translation part (m)\n(with {label} Umeyama alignment)",
         "ref_name": "reference",
         "est_name": name,
         "label": "APE (m)",
     }
-    write_atomic(folder / f"ape{suffix}.zip", result_zip(ape, errors, est_paired.t))
+    write_atomic(folder / f"ape{suffix}.zip", result_zip(ape, scored.ate, scored.estimate.t))
     written = [f"ape{suffix}.zip"]
-    pairs, trans, _ = rpe_errors(ref_paired, est_paired, 1, "frames")
-    if excluded:
-        whole = ~straddles(ref_paired.t[pairs[:, 0]], ref_paired.t[pairs[:, 1]], excluded)
-        pairs, trans = pairs[whole], trans[whole]
-        if len(trans) == 0:
-            return written  # every consecutive pair spans an excluded interval
+    if len(scored.rpe_trans) == 0:
+        return written  # every consecutive pair spans an excluded interval
     rpe = {
         "title": "RPE w.r.t. translation part (m)\nfor delta = 1 (frames) using consecutive pairs\n(not aligned)",
         "ref_name": "reference",
         "est_name": name,
         "label": "RPE (m)",
     }
-    write_atomic(folder / f"rpe{suffix}.zip", result_zip(rpe, trans, est_paired.t[pairs[:, 1]]))
+    times = scored.estimate.t[scored.rpe_pairs[:, 1]]
+    write_atomic(folder / f"rpe{suffix}.zip", result_zip(rpe, scored.rpe_trans, times))
     written.append(f"rpe{suffix}.zip")
     return written

@@ -191,7 +191,62 @@ def dataset_entry(name: str) -> DatasetEntry:
 
 
 def load_dataset(name: str, seed: int, options: dict[str, str] | None = None):
-    """Load the ``Sequence`` called ``name`` with ``--data`` options."""
+    """Load the ``Sequence`` called ``name`` with ``--data`` options.
+
+    Two options belong to no loader and every dataset: ``relations=FILE`` (relative poses
+    between pairs of times, scored by ``workbench.metrics.relations``) and
+    ``relations_max_diff_s=S`` (their stamp tolerance [s]). They are taken out of the options
+    before the loader parses the rest (loaders forbid unknown keys), the file is read, and
+    the relations are attached to the sequence's ``GroundTruth.relations`` with
+    ``dataclasses.replace`` (a sequence without truth gets a truth holding only them).
+    Why here: relations are evaluation data a user brings for any recording (the CARMEN
+    logs, a bag, a simulation), not something a loader knows or decodes; one hook keeps
+    every loader, present and future, free of the option, while the relations still travel
+    with the ``Sequence`` into ``compute_metrics`` (metrics.json, tables), and
+    ``config.yaml`` records them with the other ``--data`` options, so ``rerun`` repeats
+    them. The file is read before the loader runs, so a bad file fails fast.
+    """
     entry = dataset_entry(name)
     _, argument = split_dataset_name(name)
-    return entry.loader()(argument, seed, dict(options or {}))
+    remaining = dict(options or {})
+    relations = _read_relations_options(
+        remaining.pop("relations", None), remaining.pop("relations_max_diff_s", None)
+    )
+    sequence = entry.loader()(argument, seed, remaining)
+    if relations is None:
+        return sequence
+    from dataclasses import replace
+
+    from datasets.state import GroundTruth, StateHistory
+
+    truth = sequence.ground_truth or GroundTruth(history=StateHistory())
+    return replace(sequence, ground_truth=replace(truth, relations=relations))
+
+
+def _read_relations_options(path: str | None, max_diff_s: str | None):
+    """``Relations`` from ``--data relations=FILE [relations_max_diff_s=S]``, or None."""
+    if path is None:
+        if max_diff_s is not None:
+            raise InputError("--data relations_max_diff_s needs --data relations=FILE")
+        return None
+    if not path:
+        raise InputError("--data relations= needs a file: relations=FILE")
+    import math
+
+    tolerance = None
+    if max_diff_s is not None:
+        try:
+            tolerance = float(max_diff_s)
+        except ValueError:
+            tolerance = math.nan
+        if not (tolerance > 0 and math.isfinite(tolerance)):
+            raise InputError(
+                f"--data relations_max_diff_s must be a positive number of seconds, "
+                f"got '{max_diff_s}'"
+            )
+    from workbench.metrics.relations import read_relations
+
+    try:
+        return read_relations(path, tolerance)
+    except InputError as error:
+        raise InputError(f"--data relations: {error}") from None

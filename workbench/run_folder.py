@@ -183,22 +183,18 @@ def write_run_folder(
         estimate = result.estimate
         truth = result.sequence.ground_truth
         reference = None if truth is None else truth.pose
-        histories = (("", estimate.causal), ("_smoothed", estimate.smoothed))
-        for suffix, history in histories:
+        # the pose pairs are computed once, for metrics.json and the evo files alike
+        scored: dict = {}
+        metrics = compute_metrics(estimate, result.sequence, scored)
+        histories = (("", "causal", estimate.causal), ("_smoothed", "smoothed", estimate.smoothed))
+        for suffix, name, history in histories:
             if history is None or history.pose is None or len(history.pose) == 0:
                 continue
             write_tum(folder / f"estimate{suffix}.tum", history.pose)
             write_kitti(folder / f"estimate{suffix}.kitti", history.pose)
-            if reference is not None and len(reference):
+            if name in scored:
                 label = f"{request.estimator} on {result.sequence.name} seed {request.seed}"
-                write_evo_results(
-                    folder,
-                    reference,
-                    history.pose,
-                    label + suffix.replace("_", " "),
-                    suffix,
-                    excluded=truth.excluded,
-                )
+                write_evo_results(folder, scored[name], label + suffix.replace("_", " "), suffix)
         if reference is not None and len(reference):
             write_tum(folder / "reference.tum", reference)
             write_kitti(folder / "reference.kitti", reference)
@@ -212,7 +208,6 @@ def write_run_folder(
         }
         write_atomic(folder / EVENTS_FILE, dump_json(events))
         save_run_consistency(estimate, result.sequence, folder / CONSISTENCY_FILE)
-        metrics = compute_metrics(estimate, result.sequence)
         metrics["warnings"] = (
             run_warnings(result)
             + divergence_warning(metrics, request.estimator, result.sequence.name)

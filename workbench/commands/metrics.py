@@ -1,5 +1,6 @@
 """``workbench metrics ate|rpe``: evaluate any pair of trajectory files (TUM, or KITTI poses
-paired by index; which one a file is, its rows say) and print JSON."""
+paired by index; which one a file is, its rows say) and print JSON. ``workbench metrics
+relations``: score a TUM trajectory against a relations file (``workbench.metrics.relations``)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import Annotated
 import typer
 
 from datasets.errors import InputError
+from datasets.state import Relations
 from datasets.trajectory import Trajectory
 from datasets.trajectory_io import read_kitti, read_tum, trajectory_format
 
@@ -25,6 +27,11 @@ AlignOption = Annotated[str, typer.Option("--align", help="alignment: se3, sim3,
 MaxDiffOption = Annotated[
     float, typer.Option("--max-diff", help="max time difference when pairing stamps [s]")
 ]
+
+
+DEFAULT_RELATIONS_MAX_DIFF_S = 0.01
+"""``workbench.metrics.relations.DEFAULT_MAX_DIFF_S`` (evo's), repeated so that ``--help``
+does not import the metrics."""
 
 
 def _check_align(align: str) -> None:
@@ -111,4 +118,55 @@ def register(app: typer.Typer) -> None:
         )
         typer.echo(dump_json(report), nl=False)
 
+    @metrics_app.command("relations")
+    def relations_command(
+        est: Annotated[
+            Path, typer.Option("--est", help="estimated trajectory (TUM: relations pair times)")
+        ],
+        relations: Annotated[
+            Path,
+            typer.Option("--relations", help="relations file: t1 t2 x y z roll pitch yaw per line"),
+        ],
+        max_diff: Annotated[
+            float,
+            typer.Option(
+                "--max-diff", help="max time difference between a relation's time and a pose [s]"
+            ),
+        ] = DEFAULT_RELATIONS_MAX_DIFF_S,
+    ) -> None:
+        """Relations error (Kuemmerle et al. 2009): mean, std and squared translational and
+        rotational error of the estimate's relative poses, relations used and skipped."""
+        from workbench.metrics.relations import read_relations
+        from workbench.run_folder import dump_json
+
+        _check_positive("--max-diff", max_diff)
+        typer.echo(dump_json(relations_report(est, read_relations(relations), max_diff)), nl=False)
+
     app.add_typer(metrics_app, name="metrics")
+
+
+def relations_report(est: Path, relations: Relations, max_diff_s: float) -> dict[str, object]:
+    """The JSON of ``workbench metrics relations``: ``RelationsResult.report()``.
+
+    A relation pairs two times, so the estimate must carry stamps: a KITTI pose file (no
+    time) is refused. ``InputError`` too when no relation could be scored, naming both files
+    and why the relations were skipped (a time base that differs between the files, most
+    likely), rather than a report of nothing.
+    """
+    from workbench.metrics.relations import relation_errors
+
+    if trajectory_format(est) == "kitti":
+        raise InputError(
+            f"--est {est}: KITTI poses carry no time, and relations pair times: "
+            "give the estimate as a TUM file"
+        )
+    estimate = read_tum(est)
+    result = relation_errors(estimate, relations, max_diff_s)
+    if result.used_count == 0:
+        raise InputError(
+            f"--relations {relations.source}: none of its {len(relations)} relations could be "
+            f"scored on --est {est} ({result.skipped_text()}; relation times "
+            f"{relations.times.min():.6f}..{relations.times.max():.6f} s, estimate "
+            f"{estimate.t[0]:.6f}..{estimate.t[-1]:.6f} s, --max-diff {max_diff_s:g} s)"
+        )
+    return result.report()

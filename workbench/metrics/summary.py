@@ -22,6 +22,15 @@ files):
     before pairing, estimate poses inside an interval leave the pairs, RPE pairs whose
     interval meets one are dropped (KITTI segments, 100 m and longer, keep their trusted
     ends), held-out fixes inside one are not compared.
+relations (``relations_metrics``, Kümmerle et al. 2009: the estimate's relative poses against
+``GroundTruth.relations``, given with ``--data relations=FILE``; ``workbench.metrics.relations``):
+    ``relations_trans_error_mean_m``, ``relations_trans_error_std_m``,
+    ``relations_rot_error_mean_deg``, ``relations_rot_error_std_deg`` (sample std, None for
+    fewer than two), ``relations_trans_error_sq_mean_m2``, ``relations_rot_error_sq_mean_deg2``
+    (means of the squares), ``relations_used``, ``relations_skipped`` and
+    ``relations_skipped_reasons`` (``"N reason, ..."``, None when none was skipped), and the
+    stamp tolerance ``relations_max_diff_s``. All None without relations (or without a pose
+    history); ``_smoothed`` copies as above, except the tolerance.
 consistency (``state_errors.nees_series``: truth looked up at the estimate's times):
     every NEES per degree of freedom (the sum of a block's NEES over the steps it is scored
     on, over the sum of their dof: 1 when consistent): ``nees_pose_per_dof`` (a pose has 6
@@ -61,6 +70,7 @@ cost: ``steps`` (timing entries = measurements processed; without timing, causal
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -110,7 +120,8 @@ CONSISTENCY_KEYS = (
     "nees_accel_bias_per_dof",
     "nees_landmarks_per_dof",
 )
-UNIT_SUFFIXES = ("_m", "_deg", "_ms", "_s")
+UNIT_SUFFIXES = ("_m2", "_deg2", "_m", "_deg", "_ms", "_s")
+"""Units a metric key ends with (the longer first: ``_m2`` before ``_m``)."""
 
 
 def smoothed_key(key: str) -> str:
@@ -155,42 +166,82 @@ MIN_SCORED_POSES = 3
 """Fewer poses paired with a finite reference give n/a accuracy, not a number."""
 
 
-def accuracy_metrics(pose: Trajectory | None, ground_truth: GroundTruth | None) -> Metrics:
-    """ATE, RPE, final orientation error and held-out GPS RMSE of one pose history."""
-    metrics: Metrics = dict.fromkeys(ACCURACY_KEYS)
+@dataclass(frozen=True)
+class ScoredPairs:
+    """The pose pairs a run is scored on, computed once (``scored_pairs``) and read by
+    metrics.json, the evo result files and the tables alike.
+
+    Attributes:
+        reference, estimate: the paired truth and estimate (evo's nearest-stamp pairing,
+            truth inside ``GroundTruth.excluded`` and non-finite truth rows left out), (N,).
+        align: ``se3`` or ``se2`` (by dimension).
+        ate: aligned position errors [m], (N,). ate_raw: without alignment [m], (N,).
+        rpe_pairs: (M, 2) index pairs of the 1-frame RPE (pairs across an excluded interval
+            left out); rpe_trans [m], rpe_rot_deg [deg]: their errors, (M,).
+    """
+
+    reference: Trajectory
+    estimate: Trajectory
+    align: str
+    ate: np.ndarray
+    ate_raw: np.ndarray
+    rpe_pairs: np.ndarray
+    rpe_trans: np.ndarray
+    rpe_rot_deg: np.ndarray
+
+
+def scored_pairs(pose: Trajectory | None, ground_truth: GroundTruth | None) -> ScoredPairs | None:
+    """The pairs ``pose`` is scored on against ``ground_truth`` (``ScoredPairs``), or None
+    when fewer than ``MIN_SCORED_POSES`` pair (an alignment needs three)."""
     if pose is None or len(pose) == 0 or ground_truth is None:
-        return metrics
-    metrics["gps_holdout_rmse_m"] = _holdout_rmse(pose, ground_truth)
+        return None
     if ground_truth.pose is None or len(ground_truth.pose) == 0:
-        return metrics
+        return None
     excluded = ground_truth.excluded
     try:
         reference, estimate = paired_trajectories(
             trusted_samples(ground_truth.pose, excluded), pose
         )
     except InputError:
-        return metrics  # no stamps in common: nothing to compare
+        return None  # no stamps in common: nothing to compare
     finite = np.all(np.isfinite(reference.positions), axis=1)
     if excluded:
         finite &= ground_truth.trusted(estimate.t)  # no estimate scored inside an interval
     if int(finite.sum()) < MIN_SCORED_POSES:
-        return metrics  # n/a, never a number from one or two poses (an alignment needs 3)
+        return None  # n/a, never a number from one or two poses
     reference, estimate = (
         reference.select(np.flatnonzero(finite)),
         estimate.select(np.flatnonzero(finite)),
     )
     align = "se3" if pose.dimension == 3 else "se2"
-    metrics["ate_rmse_m"] = _rmse(ate_errors(reference, estimate, align, allow_degenerate=True)[0])
-    metrics["ate_rmse_raw_m"] = _rmse(ate_errors(reference, estimate, "none")[0])
-    if len(estimate) >= 2:
-        pairs, trans, rot_deg = rpe_errors(reference, estimate, 1, "frames")
-        if excluded:
-            # a "1-frame" pair across an excluded interval would span untrusted truth
-            whole = ~straddles(reference.t[pairs[:, 0]], reference.t[pairs[:, 1]], excluded)
-            trans, rot_deg = trans[whole], rot_deg[whole]
-        metrics["rpe_trans_rmse_m"] = _rmse(trans)
-        metrics["rpe_rot_rmse_deg"] = _rmse(rot_deg)
-        kitti = kitti_segment_errors(reference, estimate)
+    ate = ate_errors(reference, estimate, align, allow_degenerate=True)[0]
+    ate_raw = ate_errors(reference, estimate, "none")[0]
+    pairs, trans, rot_deg = rpe_errors(reference, estimate, 1, "frames")
+    if excluded and len(pairs):
+        # a "1-frame" pair across an excluded interval would span untrusted truth
+        whole = ~straddles(reference.t[pairs[:, 0]], reference.t[pairs[:, 1]], excluded)
+        pairs, trans, rot_deg = pairs[whole], trans[whole], rot_deg[whole]
+    return ScoredPairs(reference, estimate, align, ate, ate_raw, pairs, trans, rot_deg)
+
+
+def accuracy_metrics(
+    pose: Trajectory | None, ground_truth: GroundTruth | None, scored: ScoredPairs | None = None
+) -> Metrics:
+    """ATE, RPE, final orientation error and held-out GPS RMSE of one pose history
+    (``scored``: its ``scored_pairs``, when the caller has them already)."""
+    metrics: Metrics = dict.fromkeys(ACCURACY_KEYS)
+    if pose is None or len(pose) == 0 or ground_truth is None:
+        return metrics
+    metrics["gps_holdout_rmse_m"] = _holdout_rmse(pose, ground_truth)
+    scored = scored or scored_pairs(pose, ground_truth)
+    if scored is None:
+        return metrics
+    metrics["ate_rmse_m"] = _rmse(scored.ate)
+    metrics["ate_rmse_raw_m"] = _rmse(scored.ate_raw)
+    if len(scored.estimate) >= 2:
+        metrics["rpe_trans_rmse_m"] = _rmse(scored.rpe_trans)
+        metrics["rpe_rot_rmse_deg"] = _rmse(scored.rpe_rot_deg)
+        kitti = kitti_segment_errors(scored.reference, scored.estimate)
         metrics["kitti_translation_percent"] = _number(kitti["translation_percent"])
         metrics["kitti_rotation_deg_per_100m"] = _number(kitti["rotation_deg_per_100m"])
     metrics["final_orientation_error_deg"] = _final_orientation_error_deg(pose, ground_truth)
@@ -394,20 +445,33 @@ def cost_metrics(estimate: Estimate) -> Metrics:
     }
 
 
-def compute_metrics(estimate: Estimate, sequence: Sequence) -> Metrics:
-    """The flat metrics dictionary of one run (see the module docstring for every key)."""
+def compute_metrics(
+    estimate: Estimate, sequence: Sequence, scored: dict[str, ScoredPairs] | None = None
+) -> Metrics:
+    """The flat metrics dictionary of one run (see the module docstring for every key).
+    ``scored``: filled with the ``ScoredPairs`` of the causal and smoothed histories
+    (``causal``, ``smoothed``), for the caller that writes them elsewhere (the evo files)."""
     ground_truth = sequence.ground_truth
     mapping: dict[int, int] = {}
     if ground_truth is not None:
         mapping = landmark_id_mapping(estimate.diagnostics, ground_truth)
 
     metrics: Metrics = {}
-    metrics.update(accuracy_metrics(estimate.causal.pose, ground_truth))
+    causal_pairs = scored_pairs(estimate.causal.pose, ground_truth)
+    metrics.update(accuracy_metrics(estimate.causal.pose, ground_truth, causal_pairs))
     metrics.update(consistency_metrics(estimate.causal, ground_truth, mapping, estimate.landmarks))
     smoothed = estimate.smoothed
-    smoothed_accuracy = accuracy_metrics(
-        smoothed.pose if smoothed is not None else None, ground_truth
-    )
+    smoothed_pose = smoothed.pose if smoothed is not None else None
+    smoothed_pairs = scored_pairs(smoothed_pose, ground_truth)
+    smoothed_accuracy = accuracy_metrics(smoothed_pose, ground_truth, smoothed_pairs)
+    if scored is not None:
+        scored.update(
+            {
+                name: pairs
+                for name, pairs in (("causal", causal_pairs), ("smoothed", smoothed_pairs))
+                if pairs is not None
+            }
+        )
     smoothed_consistency = consistency_metrics(smoothed, ground_truth, mapping)
     metrics.update(
         {
@@ -415,12 +479,55 @@ def compute_metrics(estimate: Estimate, sequence: Sequence) -> Metrics:
             for key, value in {**smoothed_accuracy, **smoothed_consistency}.items()
         }
     )
+    metrics.update(relations_metrics(estimate.causal.pose, ground_truth))
+    smoothed_relations = relations_metrics(
+        smoothed.pose if smoothed is not None else None, ground_truth
+    )
+    smoothed_relations.pop("relations_max_diff_s")
+    metrics.update({smoothed_key(key): value for key, value in smoothed_relations.items()})
     metrics.update(nis_metrics(estimate))
     metrics.update(map_metrics(estimate.landmarks, ground_truth, mapping))
     metrics.update(association_metrics(estimate, ground_truth))
     metrics.update(divergence_metrics(estimate, sequence))
     metrics.update(frame_metrics(estimate))
     metrics.update(cost_metrics(estimate))
+    return metrics
+
+
+def relations_metrics(pose: Trajectory | None, ground_truth: GroundTruth | None) -> Metrics:
+    """The relations metric of one pose history against ``ground_truth.relations``
+    (``workbench.metrics.relations.relation_errors``: Kümmerle et al., "On measuring the
+    accuracy of SLAM algorithms", Autonomous Robots 27(4), 2009).
+
+    Keys: ``relations_trans_error_{mean,std}_m`` [m], ``relations_rot_error_{mean,std}_deg``
+    [deg], ``relations_trans_error_sq_mean_m2`` [m^2], ``relations_rot_error_sq_mean_deg2``
+    [deg^2], ``relations_used``, ``relations_skipped``, ``relations_skipped_reasons`` (one
+    line, None when none was skipped) and ``relations_max_diff_s`` (the stamp tolerance
+    [s]). All None when there are no relations or no pose history; the statistics None where
+    undefined (nothing scored, a std of fewer than two relations).
+    """
+    from workbench.metrics.relations import relation_errors
+
+    statistics = (
+        "trans_error_mean_m",
+        "trans_error_std_m",
+        "rot_error_mean_deg",
+        "rot_error_std_deg",
+        "trans_error_sq_mean_m2",
+        "rot_error_sq_mean_deg2",
+    )
+    counts = ("used", "skipped", "skipped_reasons", "max_diff_s")
+    metrics: Metrics = dict.fromkeys(f"relations_{name}" for name in statistics + counts)
+    relations = None if ground_truth is None else ground_truth.relations
+    if relations is None or pose is None:
+        return metrics
+    result = relation_errors(pose, relations)
+    found = result.statistics()
+    metrics.update({f"relations_{name}": _number(found[name]) for name in statistics})
+    metrics["relations_used"] = result.used_count
+    metrics["relations_skipped"] = result.skipped_count
+    metrics["relations_skipped_reasons"] = result.skipped_text()
+    metrics["relations_max_diff_s"] = result.max_diff_s
     return metrics
 
 

@@ -39,6 +39,8 @@ ACCURACY_KEYS = (
     "final_orientation_error_deg",
     "gps_holdout_rmse_m",
     "gps_holdout_rmse_smoothed_m",
+    "relations_trans_error_mean_m",
+    "relations_trans_error_mean_smoothed_m",
 )
 MAP_KEYS = (
     "landmarks_in_map",
