@@ -1,44 +1,43 @@
 """Figures of one run, in pairs: ``*_on_axes`` draws on given axes, the wrapper makes and
 saves the figure (GTSAM python's style). PNG by default (PDF, SVG on request), Agg backend,
-no screen needed."""
+no screen needed. The rules of the comparison figures (``workbench.figures``) hold here too:
+time relative to the run's first pose (t0 stated in the title), no offset text on any axis,
+no axes without data, chi-square bands per distinct dof.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.stats import chi2  # noqa: E402
+from datasets.estimate import Estimate
+from datasets.sequence import Sequence
+from datasets.state import BlockName, StateBlock
+from datasets.trajectory import Trajectory
+from workbench.figures.common import (
+    NamedFigure,
+    TimeAxis,
+    log_y_if_wide,
+    plain_numbers,
+    plt,
+    save_figure,
+)
+from workbench.figures.consistency import band, band_dofs
+from workbench.figures.consistency import nis_on_axes as _nis_on_axes
+from workbench.plot_formats import DEFAULT_PLOT_FORMATS
+from workbench.style import REFERENCE_COLOUR
 
-from datasets.estimate import Estimate  # noqa: E402
-from datasets.sequence import Sequence  # noqa: E402
-from datasets.state import BlockName, StateBlock  # noqa: E402
-from datasets.trajectory import Trajectory  # noqa: E402
-from workbench.plot_formats import DEFAULT_PLOT_FORMATS  # noqa: E402
+__all__ = [
+    "NamedFigure",
+    "block_on_axes",
+    "nis_on_axes",
+    "save_figure",
+    "trajectory_on_axes",
+    "write_run_plots",
+]
 
-NamedFigure = tuple[str, plt.Figure]
-"""A figure and the file name (without suffix) it is saved under."""
-
-
-def save_figure(
-    figure: plt.Figure, path_without_suffix: Path, formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS
-) -> list[Path]:
-    """Lay out once, save in each of ``formats``, close; returns the files written.
-
-    ``tight_layout`` once rather than ``bbox_inches="tight"``, which draws every file twice.
-    """
-    path_without_suffix.parent.mkdir(parents=True, exist_ok=True)
-    figure.tight_layout()
-    written = []
-    for suffix in formats:
-        path = path_without_suffix.with_suffix(f".{suffix}")
-        figure.savefig(path, dpi=120)
-        written.append(path)
-    plt.close(figure)
-    return written
+ESTIMATE_COLOUR = "C3"
 
 
 def trajectory_on_axes(
@@ -68,26 +67,35 @@ def trajectory_on_axes(
     axes.legend(fontsize=8)
 
 
-def block_on_axes(axes: np.ndarray, block: StateBlock, truth: StateBlock | None, unit: str) -> None:
-    """Each component of a state block with its +/-3 sigma envelope, and truth when known."""
+def block_on_axes(
+    axes: np.ndarray,
+    block: StateBlock,
+    truth: StateBlock | None,
+    unit: str,
+    time: TimeAxis | None = None,
+) -> None:
+    """Each component of a state block with its +/-3 sigma envelope, and truth when known
+    (``time``: the run's time axis, t - t0)."""
+    time = time or TimeAxis()
+    t = time(block.t)
     for component, ax in enumerate(axes):
         values = block.values[:, component]
-        ax.plot(block.t, values, color="C3", linewidth=1.0, label="estimate")
+        ax.plot(t, values, color=ESTIMATE_COLOUR, linewidth=1.0, label="estimate")
         if block.covariances is not None:
             sigma = np.sqrt(np.maximum(block.covariances[:, component, component], 0.0))
             ax.fill_between(
-                block.t,
+                t,
                 values - 3 * sigma,
                 values + 3 * sigma,
-                color="C3",
+                color=ESTIMATE_COLOUR,
                 alpha=0.2,
                 label="+/-3 sigma",
             )
         if truth is not None and truth.values.shape[1] > component:
             ax.plot(
-                truth.t,
+                time(truth.t),
                 truth.values[:, component],
-                color="k",
+                color=REFERENCE_COLOUR,
                 linewidth=0.8,
                 linestyle="--",
                 label="truth",
@@ -95,25 +103,27 @@ def block_on_axes(axes: np.ndarray, block: StateBlock, truth: StateBlock | None,
         ax.set_ylabel(f"[{component}] [{unit}]")
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8)
-    axes[-1].set_xlabel("t [s]")
+    time.on_axes(axes[-1])
 
 
-def nis_on_axes(axes: plt.Axes, times: np.ndarray, nis: np.ndarray, dof: np.ndarray) -> None:
-    """NIS per innovation with the one-sided 95% chi-square threshold of its dof."""
-    axes.plot(times, nis, ".", markersize=2, color="C0", label="NIS")
-    for value in np.unique(dof):
-        axes.axhline(
-            chi2.ppf(0.95, value),
-            color="k",
-            linestyle="-.",
-            linewidth=0.8,
-            label=f"95% bound, dof {value}",
-        )
-    axes.set_xlabel("t [s]")
-    axes.set_ylabel("NIS")
-    axes.set_yscale("log")
-    axes.grid(True, alpha=0.3)
-    axes.legend(fontsize=8)
+def nis_on_axes(
+    axes: plt.Axes,
+    times: np.ndarray,
+    nis: np.ndarray,
+    dof: np.ndarray,
+    time: TimeAxis | None = None,
+) -> None:
+    """NIS / dof of each associated measurement: a dot inside the two-sided 95 % band of its
+    own dof, a ring outside; the bands of the distinct dofs (at most the widest and the
+    narrowest) as grey lines labelled with their dof; a log axis where the values span a
+    decade."""
+    time = time or TimeAxis()
+    order = np.argsort(times, kind="stable")
+    times, nis, dof = times[order], nis[order], np.maximum(dof[order], 1)
+    drawn = band_dofs(dof)
+    _nis_on_axes(axes, "estimate", time(times), nis, dof, drawn, ESTIMATE_COLOUR, "measurements")
+    log_y_if_wide(axes, [nis / dof, *band(np.array(drawn))])
+    time.on_axes(axes)
 
 
 _BLOCK_UNITS = {
@@ -123,6 +133,18 @@ _BLOCK_UNITS = {
 }
 
 
+def run_time_axis(estimate: Estimate, sequence: Sequence) -> TimeAxis:
+    """t0 of a run's figures: its first pose (estimate or truth)."""
+    starts = []
+    for history in (estimate.causal, estimate.smoothed):
+        if history is not None and history.pose is not None and len(history.pose):
+            starts.append(float(history.pose.t[0]))
+    truth = sequence.ground_truth
+    if truth is not None and truth.pose is not None and len(truth.pose):
+        starts.append(float(truth.pose.t[0]))
+    return TimeAxis.starting_at(starts)
+
+
 def write_run_plots(
     estimate: Estimate,
     sequence: Sequence,
@@ -130,18 +152,26 @@ def write_run_plots(
     title: str,
     formats: tuple[str, ...] = DEFAULT_PLOT_FORMATS,
 ) -> list[Path]:
-    """The standard figures of a run folder: trajectory, state blocks with 3 sigma, NIS,
-    landmark count, in each of ``formats``. Returns the files written."""
+    """The standard figures of a run folder: trajectory (as estimated, not aligned), state
+    blocks with 3 sigma, NIS, landmark count, in each of ``formats``. Returns the files
+    written; a figure with nothing to draw is not written."""
     written: list[Path] = []
+    time = run_time_axis(estimate, sequence)
     truth = sequence.ground_truth
     trajectories: dict[str, Trajectory] = {}
-    if truth is not None and truth.pose is not None:
+    styles: dict[str, dict] = {}
+    if truth is not None and truth.pose is not None and len(truth.pose):
         source = sequence.metadata.get("reference_source")
-        trajectories[f"reference ({source})" if source else "reference"] = truth.pose
-    if estimate.causal.pose is not None:
+        label = f"reference ({source})" if source else "reference"
+        trajectories[label] = truth.pose
+        styles[label] = {"color": REFERENCE_COLOUR, "linewidth": 1.0}
+    if estimate.causal.pose is not None and len(estimate.causal.pose):
         trajectories["estimate (causal)"] = estimate.causal.pose
+        styles["estimate (causal)"] = {"color": ESTIMATE_COLOUR}
     if estimate.smoothed is not None and estimate.smoothed.pose is not None:
-        trajectories["estimate (smoothed)"] = estimate.smoothed.pose
+        if len(estimate.smoothed.pose):
+            trajectories["estimate (smoothed)"] = estimate.smoothed.pose
+            styles["estimate (smoothed)"] = {"color": ESTIMATE_COLOUR, "linestyle": "--"}
     if trajectories:
         landmarks = {}
         if truth is not None and truth.landmarks is not None:
@@ -149,40 +179,48 @@ def write_run_plots(
         if estimate.landmarks is not None and estimate.landmarks.frame == "world":
             landmarks["estimated landmarks"] = estimate.landmarks.positions
         figure, axes = plt.subplots(figsize=(7, 6))
-        trajectory_on_axes(axes, trajectories, landmarks)
-        axes.set_title(title)
-        written += save_figure(figure, out_dir / "trajectory", formats)
+        trajectory_on_axes(axes, trajectories, landmarks, styles)
+        axes.set_title(f"{title} (as estimated, not aligned)")
+        written += save_figure(plain_numbers(figure), out_dir / "trajectory", formats)
     for name, block in estimate.causal.blocks.items():
+        if len(block.t) == 0:
+            continue
         truth_block = None
         if truth is not None:
-            candidate = (
+            truth_block = (
                 truth.body_velocity
                 if (name == BlockName.VELOCITY and block.frame == "body")
                 else truth.history.block(name)
             )
-            truth_block = candidate
+            if truth_block is not None and len(truth_block.t) == 0:
+                truth_block = None
         figure, axes = plt.subplots(
             block.values.shape[1],
             1,
-            figsize=(7, 2 * block.values.shape[1]),
+            figsize=(7, 2 * block.values.shape[1] + 0.4),
             sharex=True,
             squeeze=False,
         )
-        block_on_axes(axes[:, 0], block, truth_block, _BLOCK_UNITS.get(name, ""))
-        axes[0, 0].set_title(f"{title}: {name} ({block.frame} frame)")
-        written += save_figure(figure, out_dir / f"{name}", formats)
+        block_on_axes(axes[:, 0], block, truth_block, _BLOCK_UNITS.get(name, ""), time)
+        axes[0, 0].set_title(time.titled(f"{title}: {name} ({block.frame} frame)"))
+        written += save_figure(plain_numbers(figure), out_dir / f"{name}", formats)
     diagnostics = estimate.diagnostics
     if len(diagnostics.nis):
-        figure, axes = plt.subplots(figsize=(7, 3.5))
-        nis_on_axes(axes, diagnostics.nis_t, diagnostics.nis, diagnostics.nis_dof)
-        axes.set_title(title)
-        written += save_figure(figure, out_dir / "nis", formats)
+        figure, axes = plt.subplots(figsize=(9, 3.8))
+        nis_on_axes(axes, diagnostics.nis_t, diagnostics.nis, diagnostics.nis_dof, time)
+        axes.set_title(time.titled(f"{title}: NIS / dof per measurement"), fontsize=10)
+        written += save_figure(plain_numbers(figure), out_dir / "nis", formats)
     if len(diagnostics.landmark_count):
         figure, axes = plt.subplots(figsize=(7, 3))
-        axes.step(diagnostics.landmark_count_t, diagnostics.landmark_count, where="post")
-        axes.set_xlabel("t [s]")
+        axes.step(
+            time(diagnostics.landmark_count_t),
+            diagnostics.landmark_count,
+            where="post",
+            color=ESTIMATE_COLOUR,
+        )
+        time.on_axes(axes)
         axes.set_ylabel("landmarks in state")
         axes.grid(True, alpha=0.3)
-        axes.set_title(title)
-        written += save_figure(figure, out_dir / "landmark_count", formats)
+        axes.set_title(time.titled(title))
+        written += save_figure(plain_numbers(figure), out_dir / "landmark_count", formats)
     return written
