@@ -336,8 +336,10 @@ def test_non_finite_truth_or_imu_is_an_error_not_a_quiet_run(tmp_path: Path, cap
 def test_bag_exits_non_zero_when_no_estimator_ran(tmp_path: Path, capsys) -> None:
     bag = _room_bag(tmp_path / "room", 0.0)
     out = tmp_path / "out"
-    # aghili needs surveyed anchors, which a bag does not have
+    # aghili told to use surveyed anchors, which a bag does not have (its default,
+    # anchor_source=auto, takes them from first observations and runs)
     argv = ["bag", str(bag), "--out", str(out), "--estimator", "aghili", "--no-plots"]
+    argv += ["--set", "anchor_source=known"]
     assert main(argv) == 3
     captured = capsys.readouterr()
     assert "error: no estimator ran on this bag" in captured.err

@@ -6,6 +6,9 @@ A suite file (the suite's name is the file's stem)::
     description: what it is for (one line)
     runs: 3                      # Monte Carlo runs per pair unless --runs says otherwise
     reference: smoother-isam2    # optional: every ATE over this estimator's, per dataset
+    table: consistency           # optional: the LaTeX tables a report writes by default
+                                 # (accuracy, consistency, cost, all, or table.csv columns
+                                 # COL,COL; --table overrides it; default all)
     datasets:
       - sim:circle               # a name alone, or:
       - name: sim:guerreiro-loop # as `workbench run` takes it; {data}: the sweep's OUT/data,
@@ -92,6 +95,19 @@ class _SuiteFile(BaseModel):
     datasets: list[str | _DatasetEntry] = Field(min_length=1)
     estimators: list[str | _EstimatorEntry] = Field(min_length=1)
     reference: str | None = None
+    table: str | None = None
+
+    @field_validator("table")
+    @classmethod
+    def _known_table(cls, value: str | None) -> str | None:
+        from workbench.results.columns import parse_table_choice
+
+        if value is not None:
+            try:
+                parse_table_choice(value, "table")
+            except InputError as error:
+                raise ValueError(str(error)) from None
+        return value
 
 
 def _dataset_spec(entry: str | _DatasetEntry) -> DatasetSpec:
@@ -146,6 +162,16 @@ def load_suite_file(path: Path) -> Suite:
             f"({', '.join(spec.name for spec in estimators)})"
         )
     return Suite(path.stem, parsed.description, datasets, estimators, parsed.runs, parsed.reference)
+
+
+def suite_table(name_or_path: str) -> str:
+    """The LaTeX tables a suite's report writes by default: its file's ``table:``, else
+    ``all``. Read after ``get_suite`` has checked the file."""
+    from workbench.results.columns import DEFAULT_TABLE
+
+    path = suite_path(name_or_path)
+    parsed = build_model(_SuiteFile, read_yaml_file(path), f"suite file {path}")
+    return parsed.table or DEFAULT_TABLE
 
 
 def builtin_suites() -> list[str]:

@@ -8,9 +8,10 @@
 2. Runs each chosen estimator (default: every registered one the bag's sensors allow) on the
    resulting stream (the front end is cached, so it runs once) and writes ``DIR/<name>/``
    run folders with the workbench runner.
-3. Writes ``DIR/table.md``, ``table.tex`` and ``table.csv`` through the one table writer
-   (``workbench.reporting``): a row per estimator (a failed one says why), KISS-ICP's own
-   figures in a note under it.
+3. Writes ``DIR/table.md``, ``table.tex`` and ``table.csv`` and the comparison figures
+   (``DIR/plots/``) through the one report writer (``workbench.reporting``): a row per
+   estimator (a failed one says why), KISS-ICP's own figures in a note under it; prints the
+   table as ``bench`` and ``report`` do (``show_report``).
 
 Every file is written atomically, the front end's before any estimator runs, so a failure
 later leaves what was already written valid. An estimator that fails is reported in its
@@ -229,7 +230,8 @@ def bag_command(
     plot_formats: tuple[str, ...] = ("png",),
 ) -> list[dict]:
     """The whole command (module docstring); returns the table rows. ``out`` must be new,
-    empty or an earlier output of the workbench's (``workbench.owned_folders``)."""
+    empty or an earlier output of the workbench's (``workbench.owned_folders``). ``quiet``:
+    no progress bars and no table on the terminal (the files are written all the same)."""
     from workbench.owned_folders import COLLECTION, check_writable, claim_collection, exclusive
 
     out = Path(out)
@@ -409,7 +411,14 @@ def _bag_command(
             write_failed_run(out / name, request, row["status"])
         rows.append(row)
     folders = [out / name for name in names]
-    write_report(load_runs(folders), out, notes=[front_note], plot_formats=())
+    # the comparison figures as bench draws them, in the formats asked for
+    report = write_report(
+        load_runs(folders), out, notes=[front_note], plot_formats=plot_formats if plots else ()
+    )
+    if not quiet:
+        from workbench.commands.bench import show_report
+
+        show_report(report, "")  # the dataset is the bag: the tables are titled with it
     return rows
 
 
@@ -457,7 +466,10 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         plots: Annotated[
-            bool, typer.Option("--plots/--no-plots", help="write figures in run folders")
+            bool,
+            typer.Option(
+                "--plots/--no-plots", help="write the comparison figures and each run's own"
+            ),
         ] = True,
         plot_format: Annotated[
             str,
@@ -486,7 +498,6 @@ def register(app: typer.Typer) -> None:
             settings_overrides=set_ or [],
             plot_formats=parse_plot_formats(plot_format),
         )
-        typer.echo((out / "table.md").read_text(), nl=False)
         ran = [row["estimator"] for row in rows[1:] if row["status"] == "ok"]
         typer.echo(
             f"frontend: {out / 'frontend'}; {len(ran)} of {len(rows) - 1} estimator run(s) "

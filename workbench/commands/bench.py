@@ -2,9 +2,11 @@
 and ``workbench suite NAME`` (a built-in suite's YAML, to copy and edit).
 
 Runs a suite (``workbench.suite_files``) as a Monte Carlo sweep (``workbench.sweep``), then
-writes ``DIR/table.md``, ``table.tex``, ``table.csv`` (``workbench.tables``) and the
-figures in ``DIR/plots/`` (``workbench.report_plots``), and prints the Markdown table and
-the plots folder. Re-running the same command resumes: finished runs are not redone.
+writes ``DIR/table.md``, ``table.csv``, the LaTeX tables ``--table`` (or the suite's
+``table:``) chooses (``table.tex``, ``table_NAME.tex``: ``workbench.results.tables``) and the
+figures in ``DIR/plots/`` (``workbench.report_plots``), and prints the terminal tables with
+their legend (``show_report``) and where the files are. Re-running the same command
+resumes: finished runs are not redone.
 """
 
 from __future__ import annotations
@@ -22,7 +24,14 @@ from workbench.completion import estimator_names, suite_names
 from workbench.estimator_settings import settings_by_estimator
 from workbench.plot_formats import parse_plot_formats
 from workbench.reporting import Report
-from workbench.suite_files import DEFAULT_SUITE, builtin_suites, get_suite, suite_path
+from workbench.results.columns import TABLE_HELP
+from workbench.suite_files import (
+    DEFAULT_SUITE,
+    builtin_suites,
+    get_suite,
+    suite_path,
+    suite_table,
+)
 from workbench.suites import Suite, restrict, with_settings
 
 
@@ -40,16 +49,22 @@ def bench(
     estimators: list[str] | None = None,
     plot_formats: tuple[str, ...] = ("png",),
     settings: list[str] | None = None,
+    table: str | None = None,
 ) -> BenchOutcome:
     """Run the suite and write tables and plots (in each of ``plot_formats``).
     ``report_only``: run nothing, report the runs on disk (no dataset is probed).
     ``datasets`` / ``estimators``: only these of the suite (names or labels).
     ``settings``: ``--set`` options, ``ESTIMATOR.key=value`` (``key=value`` when the suite
-    runs one estimator). ``out`` must be new, empty or an earlier output of the
-    workbench's (``workbench.owned_folders``); it is locked while the suite runs."""
+    runs one estimator). ``table``: the LaTeX tables (``results.columns.parse_table_choice``;
+    default: the suite file's ``table:``, else all presets). ``out`` must be new, empty or an
+    earlier output of the workbench's (``workbench.owned_folders``); it is locked while the
+    suite runs."""
     from workbench.owned_folders import claim_collection, exclusive
+    from workbench.results.columns import parse_table_choice
 
     suite = restrict(get_suite(suite_name), datasets, estimators)
+    table = table or suite_table(suite_name)
+    parse_table_choice(table)  # a bad --table is an error before anything runs
     names = list(dict.fromkeys(spec.name for spec in suite.estimators))
     suite = with_settings(suite, settings_by_estimator(settings or [], names))
     runs = suite.default_runs if runs is None else runs
@@ -71,6 +86,7 @@ def bench(
             show_progress,
             report_only,
             plot_formats,
+            table,
         )
 
 
@@ -85,6 +101,7 @@ def _bench(
     show_progress: bool | None,
     report_only: bool,
     plot_formats: tuple[str, ...],
+    table: str,
 ) -> BenchOutcome:
     from rich.progress import (
         BarColumn,
@@ -109,7 +126,9 @@ def _bench(
         records = load_runs([out / "runs"])
         labels = {(record.dataset_label, record.estimator_label) for record in records}
         pairs = pairs_on_disk(suite, runs, labels)
-        report = write_report(records, out, pairs, plot_formats=formats, reference=suite.reference)
+        report = write_report(
+            records, out, pairs, plot_formats=formats, reference=suite.reference, table=table
+        )
         return BenchOutcome(report, failed=sum(1 for r in report.rows for _ in r.errors()))
     interactive = sys.stderr.isatty() if show_progress is None else show_progress
     backend = make_backend(scheduler, workers)
@@ -179,11 +198,17 @@ def _bench(
             formats,
             submit=backend.submit,
             reference=suite.reference,
+            table=table,
         )
         failed = sum(1 for record in records if not record.finished)
+        # two lines: one would not fit a 100-column terminal
         typer.echo(
-            f"{summary.ran} run(s) done, {summary.skipped} skipped (finished before), {failed} failed; "
-            f"{time.perf_counter() - started:.1f} s (planning {planned - started:.1f} s, runs {swept - planned:.1f} s, "
+            f"{summary.ran} run(s) done, {summary.skipped} skipped (finished before), "
+            f"{failed} failed; {time.perf_counter() - started:.1f} s",
+            err=True,
+        )
+        typer.echo(
+            f"  (planning {planned - started:.1f} s, runs {swept - planned:.1f} s, "
             f"tables and plots {time.perf_counter() - swept:.1f} s)",
             err=True,
         )
@@ -265,6 +290,13 @@ def register(app: typer.Typer) -> None:
                 help="estimator option ESTIMATOR.key=value (key=value when the suite runs one estimator; repeatable); the label says what was set",
             ),
         ] = None,
+        table: Annotated[
+            str | None,
+            typer.Option(
+                "--table",
+                help=TABLE_HELP + "; default: the suite's `table:`, else all",
+            ),
+        ] = None,
     ) -> None:
         """Run a benchmark suite: every estimator on every dataset it can run on, N seeds,
         then the comparison table and plots. Re-running resumes."""
@@ -283,6 +315,7 @@ def register(app: typer.Typer) -> None:
             estimators=estimator,
             plot_formats=parse_plot_formats(plot_format),
             settings=set_,
+            table=table,
         )
         show_report(outcome.report, f"suite {Path(suite).stem}")
         if outcome.failed:
@@ -305,17 +338,26 @@ def register(app: typer.Typer) -> None:
 
 
 def show_report(report: Report, title: str) -> None:
-    """The compact terminal table, the notes, and where the files are."""
+    """The compact terminal tables, their legend, the notes, and where the files are.
+
+    Rich decides the width: the terminal's, ``COLUMNS`` when set, 80 for a pipe; tables
+    close up or split to fit it (``terminal_tables``) and the legend wraps. Notes stay one
+    line each, as they are in table.md: a log is searched by them."""
     from rich.console import Console
+    from rich.text import Text
 
-    from workbench.results.tables import table_notes, terminal_tables
+    from workbench.results.tables import TERMINAL_LEGEND, table_notes, terminal_tables
 
-    # a log or a pipe gets 120 columns (rich's default 80 would cut the names)
-    console = Console(width=max(120, Console().width))
-    for table in terminal_tables(report.rows, title):
+    console = Console(highlight=False)
+    for table in terminal_tables(report.rows, title, console.width):
         console.print(table)
+    console.print(Text(TERMINAL_LEGEND))
     for note in table_notes(report.rows, report.notes):
         typer.echo(f"- {note}")
-    typer.echo(f"table: {report.tables['md']} (.tex, .csv: every column)")
+    tex = [path.name for key, path in report.tables.items() if key.startswith("tex:")]
+    # paths are never wrapped: they are copied from here
+    if "md" in report.tables:
+        typer.echo(f"table: {report.tables['md']}")
+        typer.echo(f"  (.csv: every column; LaTeX: {', '.join(['table.tex', *tex])})")
     if report.plots is not None:
         typer.echo(f"plots: {report.plots}")

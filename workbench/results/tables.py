@@ -1,12 +1,14 @@
-"""The one table writer: Markdown and LaTeX (compact), CSV (every column), and the terminal
-table (rich), from the rows of ``results.summary``. Suites (``workbench bench``), bags
-(``workbench bag``) and ``workbench report`` all write through it.
+"""The one table writer: Markdown (compact), LaTeX (``results.latex``: paper tables per
+preset), CSV (every column), and the terminal table (rich), from the rows of
+``results.summary``. Suites (``workbench bench``), bags (``workbench bag``) and
+``workbench report`` all write through it.
 
 A consistency cell reads ``1.02 ✓``: the NEES (or NIS) per degree of freedom averaged over
 runs (1 is consistent) and its verdict (``workbench.metrics.verdicts``): ✓ consistent,
-▲ optimistic (errors larger than the covariance claims), ▼ conservative, · too few runs. A
-superscript ˢ marks a cell that scores the smoothed estimate (the batch smoother has no
-causal one; a smoother's map is its final smoothed map). The bands are in ``table.csv``.
+▲ optimistic (errors larger than the covariance claims), ▼ conservative, · no verdict (too
+few runs for a NEES cell, too few updates for a NIS cell). A superscript ˢ marks a cell that
+scores the smoothed estimate (the batch smoother has no causal one; a smoother's map is its
+final smoothed map). The bands are in ``table.csv``.
 """
 
 from __future__ import annotations
@@ -16,9 +18,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from datasets.trajectory_io import write_atomic
-from workbench.metrics.verdicts import MIN_RUNS, Verdict
+from workbench.metrics.verdicts import MIN_POOLED_UPDATES, MIN_RUNS, Verdict
+from workbench.results.columns import CUSTOM, DEFAULT_TABLE, PRESETS, parse_table_choice
 from workbench.results.consistency import TABLE_BLOCKS, ConsistencyCell
-from workbench.results.summary import PairSummary, Stat, summary_frame
+from workbench.results.latex import latex_tables
+from workbench.results.summary import REFERENCE_KEY, PairSummary, Stat, summary_frame
 
 VERDICT_MARKS = {
     Verdict.CONSISTENT: "✓",
@@ -26,19 +30,17 @@ VERDICT_MARKS = {
     Verdict.CONSERVATIVE: "▼",
     Verdict.TOO_FEW_RUNS: "·",
 }
-LATEX_MARKS = {
-    Verdict.CONSISTENT: r"\checkmark",
-    Verdict.OPTIMISTIC: r"$\blacktriangle$",
-    Verdict.CONSERVATIVE: r"$\blacktriangledown$",
-    Verdict.TOO_FEW_RUNS: r"$\cdot$",
-}
-BLOCK_HEADERS = {
+BLOCK_NAMES = {
     "pose": "pose",
     "velocity": "velocity",
     "gyro_bias": "gyro bias",
     "accel_bias": "accel bias",
     "map": "map",
     "nis": "NIS",
+}
+BLOCK_HEADERS = {
+    **{block: f"NEES/dof {name}" for block, name in BLOCK_NAMES.items()},
+    "nis": "NIS/dof",
 }
 
 
@@ -53,7 +55,7 @@ class StatColumn:
 STAT_COLUMNS = (
     StatColumn("ate_rmse_m", "ATE [m]"),
     # a suite's reference estimator (``reference:``): ATE over its ATE on the same dataset
-    StatColumn("ate_over_reference", "ATE ÷ ref"),
+    StatColumn(REFERENCE_KEY, "ATE ÷ ref"),
     StatColumn("ate_rmse_smoothed_m", "ATE smoothed [m]"),
     StatColumn("rpe_trans_rmse_m", "RPE trans [m]"),
     StatColumn("rpe_rot_rmse_deg", "RPE rot [deg]"),
@@ -73,15 +75,24 @@ TAIL_COLUMNS = (
     StatColumn("time_total_s", "time/run [s]"),
 )
 
+NO_VERDICT = (
+    f"· no verdict (a NEES cell needs {MIN_RUNS} runs, a NIS cell {MIN_POOLED_UPDATES} updates)"
+)
 LEGEND = (
     "Mean ± std over runs. Consistency: NEES (for NIS: the innovation of each update against "
     "the prediction before it) per degree of freedom averaged over runs, 1 is consistent; "
     f"✓ consistent, ▲ optimistic (errors larger than the covariance says), ▼ conservative, "
-    f"· too few runs (< {MIN_RUNS}); a cell scores the causal estimate, ˢ the smoothed one "
+    f"{NO_VERDICT}; a cell scores the causal estimate, ˢ the smoothed one "
     "(the batch smoother has no causal estimate; smoother maps are their final smoothed "
     "maps); bands and verdict rule in table.csv and workbench/metrics/verdicts.py. "
-    "NIS/dof: every update of every run pooled. Columns named time_* in table.csv are "
-    "wall-clock cost."
+    "NIS/dof pooled: every update of every run summed over their summed dof. Columns named "
+    "time_* in table.csv are wall-clock cost."
+)
+TERMINAL_LEGEND = (
+    "Means over runs (± std and every column in table.md and table.csv). NEES and NIS per "
+    "degree of freedom averaged over runs, 1 is consistent: ✓ consistent, ▲ optimistic "
+    "(errors larger than the covariance says), ▼ conservative, "
+    f"{NO_VERDICT}; ˢ scores the smoothed estimate (the estimator has no causal one)."
 )
 
 
@@ -164,7 +175,7 @@ def markdown_table(rows: list[PairSummary], notes: list[str] = ()) -> str:
     stats, tail = _shown_stats(rows, STAT_COLUMNS), _shown_stats(rows, TAIL_COLUMNS)
     blocks = _shown_blocks(rows)
     header = ["dataset", "estimator", "runs"] + [c.header for c in stats]
-    header += [BLOCK_HEADERS[b] for b in blocks] + ["NIS/dof"] + [c.header for c in tail]
+    header += [BLOCK_HEADERS[b] for b in blocks] + ["NIS/dof pooled"] + [c.header for c in tail]
     lines = [
         "| " + " | ".join(header) + " |",
         "|" + "|".join(["---"] * 3 + ["---:"] * (len(header) - 3)) + "|",
@@ -185,64 +196,6 @@ def markdown_table(rows: list[PairSummary], notes: list[str] = ()) -> str:
     return "\n".join(lines) + "\n"
 
 
-_LATEX_SPECIAL = {
-    "\\": r"\textbackslash{}",
-    "&": r"\&",
-    "%": r"\%",
-    "$": r"\$",
-    "#": r"\#",
-    "_": r"\_",
-    "{": r"\{",
-    "}": r"\}",
-    "~": r"\textasciitilde{}",
-    "^": r"\^{}",
-}
-
-
-def latex_escape(text: str) -> str:
-    return "".join(_LATEX_SPECIAL.get(character, character) for character in text)
-
-
-def latex_table(rows: list[PairSummary]) -> str:
-    """The compact table as a LaTeX ``tabular`` (needs booktabs and amssymb)."""
-    stats, tail = _shown_stats(rows, STAT_COLUMNS), _shown_stats(rows, TAIL_COLUMNS)
-    blocks = _shown_blocks(rows)
-    header = ["dataset", "estimator", "runs"] + [c.header for c in stats]
-    header += [BLOCK_HEADERS[b] for b in blocks] + ["NIS/dof"] + [c.header for c in tail]
-    lines = [
-        "% Mean $\\pm$ std over runs; consistency: NEES (NIS) per dof averaged over runs with its",
-        "% verdict: \\checkmark consistent, $\\blacktriangle$ optimistic, $\\blacktriangledown$",
-        "% conservative, $\\cdot$ too few runs; $^{s}$ scores the smoothed estimate.",
-        "% Needs \\usepackage{booktabs,amssymb}.",
-        "\\begin{tabular}{ll r" + " r" * (len(header) - 3) + "}",
-        "\\toprule",
-        " & ".join(latex_escape(cell) for cell in header) + " \\\\",
-        "\\midrule",
-    ]
-    previous = None
-    for row in rows:
-        if previous is not None and row.dataset != previous:
-            lines.append("\\midrule")
-        previous = row.dataset
-        cells = [latex_escape(row.dataset), latex_escape(row.estimator), _runs_text(row)]
-        if row.status in ("n/a", "failed", "missing"):
-            cells += [row.status] + [""] * (len(header) - 4)
-        else:
-            cells += [
-                latex_escape(stat_text(row.stats.get(c.key), "\0")).replace("\0", " $\\pm$ ")
-                for c in stats
-            ]
-            cells += [cell_text(row.cells.get(b), LATEX_MARKS, "$^{s}$") for b in blocks]
-            cells.append(format_number(row.nis_per_dof, 3))
-            cells += [
-                latex_escape(stat_text(row.stats.get(c.key), "\0")).replace("\0", " $\\pm$ ")
-                for c in tail
-            ]
-        lines.append(" & ".join(cells) + " \\\\")
-    lines += ["\\bottomrule", "\\end{tabular}"]
-    return "\n".join(lines) + "\n"
-
-
 def csv_table(rows: list[PairSummary]) -> str:
     """Every column (``summary.summary_frame``), numbers with 6 significant digits, empty
     when not defined."""
@@ -250,14 +203,38 @@ def csv_table(rows: list[PairSummary]) -> str:
     return frame.to_csv(index=False, float_format="%.6g", lineterminator="\n")
 
 
-def write_tables(rows: list[PairSummary], out: Path, notes: list[str] = ()) -> dict[str, Path]:
-    """``table.md``, ``table.tex`` and ``table.csv`` in ``out``; returns the paths by suffix."""
+def write_tables(
+    rows: list[PairSummary],
+    out: Path,
+    notes: list[str] = (),
+    table: str = DEFAULT_TABLE,
+    label: str | None = None,
+) -> dict[str, Path]:
+    """``table.md``, ``table.csv`` and the LaTeX tables in ``out``: ``table_NAME.tex`` for
+    each table ``table`` chooses (``columns.parse_table_choice``: a preset, ``all``, or a
+    column list, ``table_custom.tex``) and ``table.tex`` holding them all. ``label``: the
+    LaTeX labels' prefix (``tab:LABEL-NAME``; default the folder's name). Returns the paths
+    by key: ``md``, ``csv``, ``tex`` and ``tex:NAME``."""
+    from workbench.suites import slug
+
     out = Path(out)
-    return {
+    chosen = parse_table_choice(table)
+    prefix = slug(label if label is not None else out.name).lower()
+    paths = {
         "md": write_atomic(out / "table.md", markdown_table(rows, list(notes))),
-        "tex": write_atomic(out / "table.tex", latex_table(rows)),
         "csv": write_atomic(out / "table.csv", csv_table(rows)),
     }
+    texts = []
+    for name, columns in chosen:
+        text = latex_tables(rows, name, columns, f"tab:{prefix}-{name}")
+        paths[f"tex:{name}"] = write_atomic(out / f"table_{name}.tex", text)
+        texts.append(text)
+    # a table an earlier report here chose and this one did not would read as this report's
+    for name in (*PRESETS, CUSTOM):
+        if f"tex:{name}" not in paths:
+            (out / f"table_{name}.tex").unlink(missing_ok=True)
+    paths["tex"] = write_atomic(out / "table.tex", "\n".join(texts))
+    return paths
 
 
 VERDICT_STYLES = {
@@ -268,57 +245,146 @@ VERDICT_STYLES = {
 }
 
 
-def terminal_tables(rows: list[PairSummary], title: str = "") -> list:
-    """The columns a reader needs first, one rich ``Table`` per dataset (titled with it, so
-    no column repeats it): estimator, runs, ATE, the consistency verdicts, NIS/dof, time per
-    run. The full table stays in the files."""
+@dataclass(frozen=True)
+class TerminalColumn:
+    """A terminal column: its header lines (name, then unit or normalisation), whether it
+    is a consistency column (the part a table too wide for the terminal moves to a second
+    table), and its cell of a row (str or rich ``Text``)."""
+
+    header: tuple[str, str]
+    consistency: bool
+    cell: object  # Callable[[PairSummary], str | Text]
+
+
+def _mean_text(row: PairSummary, causal: str, smoothed: str) -> str:
+    """The causal mean of a row, else its smoothed one marked ˢ (3 significant digits)."""
+    stat = row.stats.get(causal)
+    if stat is not None:
+        return format_number(stat.mean, 3)
+    stat = row.stats.get(smoothed)
+    return "" if stat is None else format_number(stat.mean, 3) + "ˢ"
+
+
+def _verdict_text(cell: ConsistencyCell | None):
+    from rich.text import Text
+
+    if cell is None:
+        return ""
+    return Text(cell_text(cell), style=VERDICT_STYLES[cell.statistic.verdict])
+
+
+def _terminal_columns(rows: list[PairSummary]) -> list[TerminalColumn]:
+    """The columns one dataset's rows fill, those that matter first: accuracy (ATE, the
+    reference ratio, the GPS hold-out when the dataset has one), consistency (pose first,
+    NIS last), time per run."""
+
+    def filled(*keys: str) -> bool:
+        return any(key in row.stats for row in rows for key in keys)
+
+    columns = []
+    if filled("ate_rmse_m", "ate_rmse_smoothed_m"):
+        columns.append(
+            TerminalColumn(
+                ("ATE", "[m]"), False, lambda r: _mean_text(r, "ate_rmse_m", "ate_rmse_smoothed_m")
+            )
+        )
+    if filled(REFERENCE_KEY):
+        columns.append(
+            TerminalColumn(
+                ("ATE ÷ ref", ""),
+                False,
+                lambda r: (
+                    format_number(r.stats[REFERENCE_KEY].mean, 3)
+                    if REFERENCE_KEY in r.stats
+                    else ""
+                ),
+            )
+        )
+    # kitti-imu-gps has no truth of the path: its only accuracy figure is the hold-out
+    if filled("gps_holdout_rmse_m", "gps_holdout_rmse_smoothed_m"):
+        columns.append(
+            TerminalColumn(
+                ("GPS hold-out", "[m]"),
+                False,
+                lambda r: _mean_text(r, "gps_holdout_rmse_m", "gps_holdout_rmse_smoothed_m"),
+            )
+        )
+    for block in _shown_blocks(rows):
+        header = ("NIS", "per dof") if block == "nis" else (BLOCK_NAMES[block], "NEES/dof")
+        columns.append(
+            TerminalColumn(header, True, lambda r, b=block: _verdict_text(r.cells.get(b)))
+        )
+    if filled("time_total_s"):
+        columns.append(
+            TerminalColumn(
+                ("time/run", "[s]"),
+                False,
+                lambda r: (
+                    format_number(r.stats["time_total_s"].mean, 3)
+                    if "time_total_s" in r.stats
+                    else ""
+                ),
+            )
+        )
+    return columns
+
+
+def _terminal_table(
+    rows: list[PairSummary], heading: str, columns: list[TerminalColumn], compact: bool
+):
+    from rich import box
     from rich.table import Table
     from rich.text import Text
 
+    # labels are Text, never markup: "ekf-slam [acceleration_density=0.2]" is a label, and
+    # so is a unit: "[m]" would read as a style
+    table = Table(
+        title=Text(heading),
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        show_edge=False,
+        pad_edge=False,
+        collapse_padding=compact,
+    )
+    table.add_column(Text("estimator"), vertical="bottom")
+    table.add_column(Text("runs"), justify="right", no_wrap=True)
+    for column in columns:
+        table.add_column(Text("\n".join(column.header)), justify="right", no_wrap=True)
+    for row in rows:
+        if row.status in ("n/a", "failed", "missing"):
+            table.add_row(Text(row.estimator), _runs_text(row), *([row.status] if columns else []))
+            continue
+        table.add_row(Text(row.estimator), _runs_text(row), *(c.cell(row) for c in columns))
+    return table
+
+
+def _table_width(table) -> int:
+    from rich.console import Console
+
+    return Console(width=100_000).measure(table).maximum
+
+
+def terminal_tables(rows: list[PairSummary], title: str = "", width: int | None = None) -> list:
+    """One rich ``Table`` per dataset (titled with it, so no column repeats it), the columns
+    that matter first (``_terminal_columns``); headers carry units. Where the table is wider
+    than ``width`` (the terminal's, None: no limit) its columns close up, and where that
+    is not enough the consistency columns go to a second table below it. The full table
+    stays in the files."""
     tables = []
-    datasets = list(dict.fromkeys(row.dataset for row in rows))
-    for dataset in datasets:
-        blocks = _shown_blocks([row for row in rows if row.dataset == dataset])
+    for dataset in dict.fromkeys(row.dataset for row in rows):
+        own = [row for row in rows if row.dataset == dataset]
         heading = f"{title}: {dataset}" if title else dataset
-        # labels are Text, never markup: "ekf-slam [acceleration_density=0.2]" is a label
-        table = Table(title=Text(heading), title_justify="left", show_lines=False)
-        table.add_column("estimator", no_wrap=True)
-        table.add_column("runs", justify="right", no_wrap=True)
-        table.add_column("ATE [m]", justify="right", no_wrap=True)
-        ratios = any("ate_over_reference" in row.stats for row in rows if row.dataset == dataset)
-        if ratios:
-            table.add_column("÷ ref", justify="right", no_wrap=True)
-        for block in blocks:
-            table.add_column(BLOCK_HEADERS[block], justify="right", no_wrap=True)
-        table.add_column("NIS/dof", justify="right", no_wrap=True)
-        table.add_column("s/run", justify="right", no_wrap=True)
-        for row in (r for r in rows if r.dataset == dataset):
-            if row.status in ("n/a", "failed", "missing"):
-                table.add_row(Text(row.estimator), _runs_text(row), row.status)
-                continue
-            ate = row.stats.get("ate_rmse_m") or row.stats.get("ate_rmse_smoothed_m")
-            smoothed = "ˢ" if "ate_rmse_m" not in row.stats and ate is not None else ""
-            cells: list = [
-                Text(row.estimator),
-                _runs_text(row),
-                (format_number(ate.mean, 3) + smoothed) if ate else "",
-            ]
-            if ratios:
-                ratio = row.stats.get("ate_over_reference")
-                cells.append(format_number(ratio.mean, 3) if ratio else "")
-            for block in blocks:
-                cell = row.cells.get(block)
-                if cell is None:
-                    cells.append("")
-                else:
-                    cells.append(
-                        Text(cell_text(cell), style=VERDICT_STYLES[cell.statistic.verdict])
-                    )
-            cells.append(format_number(row.nis_per_dof, 3))
-            cost = row.stats.get("time_total_s")
-            cells.append(format_number(cost.mean, 3) if cost else "")
-            table.add_row(*cells)
-        tables.append(table)
+        columns = _terminal_columns(own)
+        candidates = [_terminal_table(own, heading, columns, compact) for compact in (False, True)]
+        fitting = [t for t in candidates if width is None or _table_width(t) <= width]
+        if fitting:
+            tables.append(fitting[0])
+            continue
+        first = [column for column in columns if not column.consistency]
+        second = [column for column in columns if column.consistency]
+        tables.append(_terminal_table(own, heading, first, compact=False))
+        if second:
+            tables.append(_terminal_table(own, f"{heading} (consistency)", second, False))
     return tables
 
 
