@@ -36,3 +36,9 @@ def test_a_bad_value_names_the_estimator_and_only_its_key(capsys) -> None:
     (line,) = capsys.readouterr().err.splitlines()
     assert line.startswith("error: ekf-slam options: gate_probability:") and "1.5" in line
     assert "known keys" not in line and "EkfSlam" not in line
+
+
+def test_a_misspelt_suite_gets_the_closest_as_a_hint(capsys) -> None:
+    assert main(["bench", "quik", "--out", "/nonexistent/never-written"]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("error: unknown suite 'quik'") and "did you mean 'quick'?" in line

@@ -39,7 +39,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from datasets.errors import InputError
+from datasets.errors import InputError, did_you_mean
 from datasets.options import build_model
 from datasets.yaml_files import read_yaml_file
 from workbench.suites import GENERATORS, DatasetSpec, EstimatorSpec, Options, Suite
@@ -190,9 +190,10 @@ def suite_path(name_or_path: str) -> Path:
         return path
     builtin = SUITE_LIBRARY / f"{name_or_path}.yaml"
     if not builtin.is_file():
+        known = builtin_suites()
         raise InputError(
-            f"unknown suite '{name_or_path}' (built in: {', '.join(builtin_suites())}; "
-            "or the path of a suite .yaml file)"
+            f"unknown suite '{name_or_path}'{did_you_mean(name_or_path, known)} (built in: "
+            f"{', '.join(known)}; or the path of a suite .yaml file)"
         )
     return builtin
 
