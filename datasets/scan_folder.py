@@ -6,14 +6,16 @@ Formats: KITTI ``.bin`` (float32 x, y, z, intensity), ``.pcd`` (``DATA ascii`` o
 file per frame: a frame index (the name without its suffix) present twice, in two formats,
 is an error naming both files. Per-point times come from
 a ``time``/``t``/``timestamp``/``offset_time`` field when a PCD/PLY has one (same unit rules
-as bags, ``datasets.bags.pointcloud2``); without one the clouds are taken as
-motion-compensated, unless option ``point_times=azimuth`` derives the times of an
-uncompensated spinning sweep from the azimuths (``datasets.lidar.sweep_times``). Which one
-a folder holds is the user's to say: KITTI raw's velodyne_points are not compensated (the
-real KITTI clip in ``../shared/data`` is such a folder, whatever its readme says:
-``benchmarks/kitti_clip_sweep_seam.py``), and the rule is KITTI's, so it is not applied
-unasked. Taken as compensated, an uncompensated sweep shows as the corners disagreeing with
-KISS-ICP's heading, which the run warns about (``LidarFrontEnd.heading_warning``).
+as bags, ``datasets.bags.pointcloud2``). Without one, whether the sweeps are
+motion-compensated is decided at load from the first scans (option ``point_times=auto``, the
+default; ``datasets.lidar.sweep_timing``): raw sweeps are timed by azimuth, with the spin
+direction and start found in them (``datasets.lidar.sweep_times``), compensated ones are read
+without times, and an undecided folder is read as compensated with a warning. The decision
+and its evidence are ``metadata["decisions"]`` (or a warning) and
+``metadata["sweep_timing"]``; ``point_times=field`` or ``azimuth`` states it instead. Both
+real KITTI clips in ``../shared/data`` are raw sweeps and are decided so. Read as
+compensated, an uncompensated sweep shows as the corners disagreeing with KISS-ICP's
+heading, which the run warns about (``LidarFrontEnd.heading_warning``).
 
 Frame times: one number per line in ``times.txt`` (KITTI odometry) or ``timestamps.txt``
 in the folder, or the file given by option ``timestamps``; otherwise ``index / rate_hz``.
@@ -40,6 +42,7 @@ from datasets.lidar.frontend import (
 )
 from datasets.lidar.kiss_icp_odometry import pose_time
 from datasets.lidar.sweep_times import point_times_for
+from datasets.lidar.sweep_timing import SweepTimingDecision, decide_sweep_timing
 from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model
 from datasets.sequence import InitialState, NoiseSpec, Sequence
@@ -402,12 +405,10 @@ def scans_sequence(
     times = frame_times(folder, files, settings)
     steps = np.diff(times)
     order_problem = np.flatnonzero(steps <= 0)
-    # point_times=azimuth: one sweep is one frame interval
-    azimuth_sweep_s = (
-        (float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0 / settings.rate_hz)
-        if settings.point_times == "azimuth"
-        else None
-    )
+    # one sweep is one frame interval
+    sweep_s = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0 / settings.rate_hz
+    timing = folder_sweep_timing(files, times, settings, sweep_s)
+    azimuth_sweep_s = timing.azimuth  # an AzimuthSweep when the clouds are timed by azimuth
     front_end = LidarFrontEnd(settings.front_end_settings())
     source = LidarSource(front_end)
 
@@ -434,9 +435,10 @@ def scans_sequence(
 
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
     reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
-    # datasets.Sequence metadata "warnings" (printed, and in every run's metrics.json): the
-    # stream's skips and the front end's heading warning, once the stream has run
-    warnings: list[str] = []
+    # datasets.Sequence metadata "warnings" (printed, and in every run's metrics.json): an
+    # undecided sweep timing, the stream's skips and the front end's heading warning, once
+    # the stream has run
+    warnings: list[str] = list(timing.warnings)
 
     # the sequence starts at the front end's first pose (the first kept scan's; its sweep's
     # end when it is deskewed), where the first odometry increment starts; datasets.bags
@@ -494,8 +496,33 @@ def scans_sequence(
             "time_order_problems": int(order_problem.size),
             "options": settings.model_dump(mode="json"),
             "warnings": warnings,
+            # what the loader decided and why, to print as notes (a clear decision) beside
+            # the warnings (datasets.lidar.sweep_timing)
+            "decisions": [timing.text] if timing.clear else [],
+            "sweep_timing": timing.as_dict(),
         },
     ), source
+
+
+def folder_sweep_timing(
+    files: list[Path], times: np.ndarray, settings: ScanFolderOptions, sweep_s: float
+) -> SweepTimingDecision:
+    """How the folder's clouds are timed (``datasets.lidar.sweep_timing``), from its first
+    ``settings.sweep.frames`` non-empty scans in time order (none read for
+    ``point_times=field``)."""
+    clouds: list[PointCloud] = []
+    if settings.point_times != "field":
+        last = -np.inf
+        for path, stamp in zip(files, times):
+            if len(clouds) >= settings.sweep.frames:
+                break
+            if stamp <= last:
+                continue
+            cloud = read_scan(path, float(stamp), settings.point_time_unit)
+            if len(cloud.points):
+                clouds.append(cloud)
+                last = stamp
+    return decide_sweep_timing(clouds, sweep_s, settings.point_times, settings.sweep)
 
 
 def describe() -> list[str]:

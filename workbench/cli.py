@@ -306,9 +306,11 @@ def run_command(
     shown = {
         key: value
         for key, value in metrics.items()
-        if not isinstance(value, dict) and key != "warnings"
+        if not isinstance(value, dict) and key not in ("warnings", "decisions")
     }
     typer.echo(dump_json(shown), nl=False)
+    for line in metrics.get("decisions") or ():
+        typer.echo(f"note: {dataset}: {line}", err=True)
     for line in metrics["warnings"]:
         typer.echo(f"warning: {line}", err=True)
     typer.echo(f"run folder: {out}")
@@ -345,6 +347,8 @@ def rerun_command(
     with exclusive(out):
         check_writable(out, RUN)
         metrics = write_run_folder(execute(request), out, ("png",) if plots else ())
+    for line in metrics.get("decisions") or ():
+        typer.echo(f"note: {recorded.dataset}: {line}", err=True)
     for line in metrics["warnings"]:
         typer.echo(f"warning: {line}", err=True)
     typer.echo(f"run folder: {out}")

@@ -213,6 +213,9 @@ def write_run_folder(
             + divergence_warning(metrics, request.estimator, result.sequence.name)
             + frames_warning(metrics, request.estimator, result.sequence.name)
         )
+        # what a loader or front end decided from the data, with its evidence (printed as
+        # notes): kept beside the run so a reader knows how the data were read
+        metrics["decisions"] = list(result.sequence.metadata.get("decisions") or ())
         metrics.update(run_provenance(result))
         if plot_formats:
             from workbench.plots import write_run_plots

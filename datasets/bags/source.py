@@ -36,9 +36,11 @@ from pathlib import Path
 import numpy as np
 from pydantic import ConfigDict, Field
 
+from datasets.bags.pointcloud2 import MalformedCloud, decode_pointcloud2
 from datasets.bags.reader import (
     MAX_ACCEL_M_S2,
     MAX_GYRO_RAD_S,
+    POINTCLOUD2,
     ReadReport,
     ReadSettings,
     check_skips,
@@ -69,7 +71,8 @@ from datasets.lidar.frontend import (
     describe_lidar_options,
     with_front_end,
 )
-from datasets.measurements import Sensor
+from datasets.lidar.sweep_timing import SweepTimingDecision, decide_sweep_timing
+from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model, yaml_value
 from datasets.rotations import matrix_from_quat_wxyz
 from datasets.sequence import InitialState, NoiseSpec, Sequence
@@ -305,12 +308,11 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         imu_rate, gyro_density, accel_density = _imu_noise(reader, imu_topic, path)
         if imu_rate:
             rates["imu"] = float(imu_rate)
-        azimuth_sweep_s = (
-            lidar_sweep_period(reader, path, topics.lidar)
-            if settings.point_times == "azimuth"
-            else None
-        )
         max_point_time_s = max_point_time(reader, path, topics.lidar)
+        # per-point times: the clouds' own, or from azimuth where the sweeps are raw
+        # (datasets.lidar.sweep_timing, decided from the first clouds unless stated)
+        timing = bag_sweep_timing(reader, path, topics.lidar, settings, max_point_time_s)
+        azimuth_sweep_s = timing.azimuth  # an AzimuthSweep (a float: one sweep [s]) or None
         spans = topic_spans(
             reader,
             path,
@@ -374,7 +376,12 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
     # datasets.Sequence metadata "warnings": printed by the workbench (prefixed with the
     # dataset's name) and written to every run's metrics.json
-    warnings = list(load_report.lines()) + ([gps_note] if gps_note else []) + truth_warnings
+    warnings = (
+        list(timing.warnings)
+        + list(load_report.lines())
+        + ([gps_note] if gps_note else [])
+        + truth_warnings
+    )
     if topics.unnamed_truth:
         warnings.append(
             f"no ground truth: pose topic(s) {', '.join(topics.unnamed_truth)} not taken "
@@ -445,8 +452,49 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             "corner_reobservation": reobservation,  # filled once the stream has run
             "corner_sidecar": str(sidecar) if truth is not None else None,
             "options": settings.model_dump(mode="json"),
+            # what the loader decided and why, to print as notes (a clear decision) beside
+            # the warnings (datasets.lidar.sweep_timing)
+            "decisions": [timing.text] if timing.clear else [],
+            "sweep_timing": timing.as_dict(),
         },
     ), source
+
+
+def bag_sweep_timing(
+    reader, path: Path, topic: str, settings: BagOptions, max_point_time_s: float
+) -> SweepTimingDecision:
+    """How the clouds of ``topic`` are timed (``datasets.lidar.sweep_timing``), from its
+    first ``settings.sweep.frames`` decodable, non-empty clouds in stamp order, in the lidar
+    frame (before ``lidar_to_body``: azimuths are the lidar's). One sweep is the topic's
+    median frame interval (``lidar_sweep_period``); none is read for ``point_times=field``.
+    ``InputError`` (from ``lidar_sweep_period``) where azimuth times need a period and the
+    topic gives none."""
+    if settings.point_times == "field":
+        return decide_sweep_timing([], 0.0, "field", settings.sweep)
+    try:
+        sweep_s = lidar_sweep_period(reader, path, topic)
+    except InputError:
+        if settings.point_times == "azimuth":
+            raise
+        sweep_s = 0.0  # a single cloud: nothing to compare, the decision says so
+    clouds: dict[float, PointCloud] = {}
+    # broken clouds are passed over here (a throwaway report): the stream counts them
+    for _, msgtype, stamp, message in iter_messages(reader, path, [topic], report=ReadReport()):
+        if msgtype != POINTCLOUD2 or stamp in clouds:
+            continue
+        where = f"{path}, topic {topic}, t={stamp:.9f}"
+        try:
+            cloud = decode_pointcloud2(
+                message, stamp, where, settings.point_time_unit, max_point_time_s
+            )
+        except MalformedCloud:
+            continue
+        if len(cloud.points):
+            clouds[stamp] = PointCloud(t=stamp, points=cloud.points, point_times=cloud.point_times)
+        if len(clouds) >= settings.sweep.frames:
+            break
+    ordered = [clouds[stamp] for stamp in sorted(clouds)]
+    return decide_sweep_timing(ordered, sweep_s, settings.point_times, settings.sweep)
 
 
 def describe() -> list[str]:

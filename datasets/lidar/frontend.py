@@ -33,7 +33,7 @@ from datasets.lidar.kiss_icp_odometry import (
     time_span,
 )
 from datasets.lidar.motion_settling import MotionSettling
-from datasets.lidar.sweep_times import POINT_TIMES_DESCRIPTION
+from datasets.lidar.sweep_times import POINT_TIMES_DESCRIPTION, SweepOptions
 from datasets.measurements import ImuSample, Odometry, PointCloud
 from datasets.trajectory import Trajectory
 
@@ -82,7 +82,13 @@ class LidarSourceOptions(BaseModel):
     point_time_unit: str = Field(
         "auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times"
     )
-    point_times: Literal["field", "azimuth"] = Field("field", description=POINT_TIMES_DESCRIPTION)
+    point_times: Literal["auto", "field", "azimuth"] = Field(
+        "auto", description=POINT_TIMES_DESCRIPTION
+    )
+    sweep: SweepOptions = Field(
+        default_factory=SweepOptions,
+        description="spinning-lidar sweep timing, as sweep.KEY=VALUE (listed below)",
+    )
     point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
     max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
     odometry: bool = Field(True, description="KISS-ICP odometry")
@@ -116,11 +122,13 @@ class LidarSourceOptions(BaseModel):
 
 def describe_lidar_options(model: type[LidarSourceOptions]) -> list[str]:
     """Option lines of a lidar source for ``workbench list --verbose``: its own, then the
-    nested KISS-ICP and corner settings as ``kiss.KEY`` and ``corner.KEY``."""
+    nested sweep timing, KISS-ICP and corner settings as ``sweep.KEY``, ``kiss.KEY`` and
+    ``corner.KEY``."""
     from datasets.options import describe_model
 
     return (
         describe_model(model)
+        + [f"sweep.{line}" for line in describe_model(SweepOptions)]
         + [f"kiss.{line}" for line in describe_model(KissIcpSettings)]
         + [f"corner.{line}" for line in describe_model(CornerConfig)]
     )

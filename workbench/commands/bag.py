@@ -360,6 +360,9 @@ def _bag_command(
                 err=True,
             )
     write_atomic(front_dir / "metrics.json", dump_json(front))
+    # what the loader decided from the data (sweep timing), with its evidence
+    for line in sequence.metadata.get("decisions") or ():
+        typer.echo(f"front end: {line}", err=True)
     # the loader's and the front end's: skipped messages, pose topics not taken as truth
     for line in sequence.metadata.get("warnings") or ():
         typer.echo(f"warning: {sequence.name}: {line}", err=True)
