@@ -248,8 +248,7 @@ def run_command(
     ] = "png",
 ) -> None:
     """Run one estimator on one dataset and write the run folder."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
+    from workbench.progress import sequence_progress
     from workbench.run_folder import dump_json, write_run_folder
     from workbench.runner import RunRequest, execute, recorded_run
 
@@ -292,14 +291,7 @@ def run_command(
     )
     with exclusive(out):
         check_writable(out, RUN)  # before the run, not after it
-        with Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            TextColumn("t={task.completed:.1f} s"),
-            TimeElapsedColumn(),
-            transient=True,
-            disable=not sys.stderr.isatty(),
-        ) as progress:
+        with sequence_progress(disable=not sys.stderr.isatty()) as progress:
             task = progress.add_task(f"{estimator} on {dataset}", total=None)
             result = execute(request, on_step=lambda t: progress.update(task, completed=t))
         metrics = write_run_folder(result, out, plot_formats if plots else ())

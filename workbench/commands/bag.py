@@ -40,26 +40,14 @@ from workbench.estimator_settings import settings_by_estimator
 from workbench.plot_formats import parse_plot_formats
 
 
-def _progress(disable: bool):
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    return Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[rate]}"),
-        TimeElapsedColumn(),
-        transient=True,
-        disable=disable,
-    )
-
-
 def run_front_end(sequence, source, lidar_messages: int, disable_progress: bool) -> float:
     """One pass over the sequence (fills the front-end cache); returns the wall time [s]."""
     from datasets.measurements import PointCloud
 
     started = time.perf_counter()
-    with _progress(disable_progress) as progress:
+    from workbench.progress import count_progress
+
+    with count_progress(disable_progress, rate=True) as progress:
         task = progress.add_task(
             "front end (KISS-ICP + corners)", total=lidar_messages or None, rate=""
         )
@@ -378,16 +366,9 @@ def _bag_command(
     for name in names:
         row = {"estimator": name, "status": "ok"}
         try:
-            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+            from workbench.progress import sequence_progress
 
-            with Progress(
-                TextColumn("{task.description}"),
-                BarColumn(),
-                TextColumn("t={task.completed:.1f} s"),
-                TimeElapsedColumn(),
-                transient=True,
-                disable=disable,
-            ) as progress:
+            with sequence_progress(disable) as progress:
                 start = sequence.initial_state.t if sequence.initial_state else 0.0
                 task = progress.add_task(name, total=None)
                 result = execute(

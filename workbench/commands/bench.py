@@ -103,15 +103,7 @@ def _bench(
     plot_formats: tuple[str, ...],
     table: str,
 ) -> BenchOutcome:
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
+    from workbench.progress import count_progress
     from workbench.reporting import write_report
     from workbench.results.runs import load_runs, read_run
     from workbench.results.summary import PlannedPair
@@ -142,17 +134,7 @@ def _bench(
             f"suite {suite.name}: {len(plan.cells)} runs ({done} already done, {len(pending)} to run) on {backend.describe()}",
             err=True,
         )
-        with Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TextColumn("runs"),
-            TimeElapsedColumn(),
-            TextColumn("left"),
-            TimeRemainingColumn(),
-            disable=not interactive,
-            transient=False,
-        ) as progress:
+        with count_progress(not interactive, unit="runs", remaining=True) as progress:
             task = progress.add_task(f"bench {suite.name}", total=len(pending))
 
             def on_done(cell, outcome) -> None:
