@@ -23,15 +23,14 @@ from workbench.figures.common import (
     plt,
     save_figure,
 )
-from workbench.figures.consistency import band, band_dofs
-from workbench.figures.consistency import nis_on_axes as _nis_on_axes
+from workbench.figures.consistency import band, band_dofs, nis_on_axes
 from workbench.plot_formats import DEFAULT_PLOT_FORMATS
 from workbench.style import REFERENCE_COLOUR
 
 __all__ = [
     "NamedFigure",
     "block_on_axes",
-    "nis_on_axes",
+    "run_nis_on_axes",
     "save_figure",
     "trajectory_on_axes",
     "write_run_plots",
@@ -106,7 +105,7 @@ def block_on_axes(
     time.on_axes(axes[-1])
 
 
-def nis_on_axes(
+def run_nis_on_axes(
     axes: plt.Axes,
     times: np.ndarray,
     nis: np.ndarray,
@@ -121,7 +120,7 @@ def nis_on_axes(
     order = np.argsort(times, kind="stable")
     times, nis, dof = times[order], nis[order], np.maximum(dof[order], 1)
     drawn = band_dofs(dof)
-    _nis_on_axes(axes, "estimate", time(times), nis, dof, drawn, ESTIMATE_COLOUR, "measurements")
+    nis_on_axes(axes, "estimate", time(times), nis, dof, drawn, ESTIMATE_COLOUR, "measurements")
     log_y_if_wide(axes, [nis / dof, *band(np.array(drawn))])
     time.on_axes(axes)
 
@@ -207,7 +206,7 @@ def write_run_plots(
     diagnostics = estimate.diagnostics
     if len(diagnostics.nis):
         figure, axes = plt.subplots(figsize=(9, 3.8))
-        nis_on_axes(axes, diagnostics.nis_t, diagnostics.nis, diagnostics.nis_dof, time)
+        run_nis_on_axes(axes, diagnostics.nis_t, diagnostics.nis, diagnostics.nis_dof, time)
         axes.set_title(time.titled(f"{title}: NIS / dof per measurement"), fontsize=10)
         written += save_figure(plain_numbers(figure), out_dir / "nis", formats)
     if len(diagnostics.landmark_count):
