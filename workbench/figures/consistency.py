@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.stats import chi2
 
 from workbench.figures.common import (
     LEGEND_FONT,
@@ -32,7 +31,7 @@ from workbench.figures.common import (
     proxy,
     runs_text,
 )
-from workbench.metrics.consistency import CONFIDENCE
+from workbench.metrics.consistency import CONFIDENCE, per_dof_band
 from workbench.results.consistency import TABLE_BLOCKS, AveragedSeries
 from workbench.style import BAND_COLOUR, band_linestyle, curve_style
 
@@ -57,9 +56,7 @@ PERCENT = f"{100 * CONFIDENCE:.0f} %"
 
 def band(dof: np.ndarray | int, confidence: float = CONFIDENCE) -> tuple[np.ndarray, np.ndarray]:
     """The two-sided chi-square band of a statistic per dof: (lower, upper) / dof."""
-    dof = np.maximum(np.asarray(dof, dtype=float), 1.0)
-    tail = 0.5 * (1.0 - confidence)
-    return chi2.ppf(tail, dof) / dof, chi2.ppf(1.0 - tail, dof) / dof
+    return per_dof_band(np.maximum(np.asarray(dof, dtype=float), 1.0), confidence)
 
 
 @dataclass(frozen=True)

@@ -27,14 +27,23 @@ from datasets.trajectory import Trajectory
 CONFIDENCE = 0.95
 
 
-def chi2_interval(dof: int, runs: int = 1, confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """Two-sided interval of the NEES averaged over ``runs`` runs, each chi-square(dof).
-
-    Returns ``chi2.ppf([(1-c)/2, (1+c)/2], runs * dof) / runs``.
-    """
+def per_dof_band(
+    summed_dof: int | np.ndarray, confidence: float = CONFIDENCE
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two-sided ``confidence`` band of a chi-square statistic of ``summed_dof`` degrees of
+    freedom divided by them (a NEES or NIS summed over runs and components, per dof): the
+    band every averaged statistic of the workbench is judged by (Bar-Shalom et al. 2001,
+    sec. 5.4.2). Returns ``(lower, upper)``, each shaped as ``summed_dof``."""
+    summed_dof = np.asarray(summed_dof, dtype=float)
     tail = 0.5 * (1.0 - confidence)
-    low, high = chi2.ppf([tail, 1.0 - tail], runs * dof) / runs
-    return float(low), float(high)
+    return chi2.ppf(tail, summed_dof) / summed_dof, chi2.ppf(1.0 - tail, summed_dof) / summed_dof
+
+
+def chi2_interval(dof: int, runs: int = 1, confidence: float = CONFIDENCE) -> tuple[float, float]:
+    """Two-sided interval of the NEES averaged over ``runs`` runs, each chi-square(dof):
+    ``chi2.ppf([(1-c)/2, (1+c)/2], runs * dof) / runs`` (``per_dof_band`` times ``dof``)."""
+    low, high = per_dof_band(runs * dof, confidence)
+    return float(low * dof), float(high * dof)
 
 
 def chi2_upper(dof: int | np.ndarray, confidence: float = CONFIDENCE) -> np.ndarray:
@@ -85,11 +94,9 @@ def inside_fraction(
     values = np.asarray(values, dtype=float)
     if values.size == 0:
         return None
-    dofs = np.broadcast_to(np.asarray(dof), values.shape)
-    tail = 0.5 * (1.0 - confidence)
-    low = chi2.ppf(tail, dofs)
-    high = chi2.ppf(1.0 - tail, dofs)
-    return float(np.mean((values >= low) & (values <= high)))
+    dofs = np.broadcast_to(np.asarray(dof, dtype=float), values.shape)
+    low, high = per_dof_band(dofs, confidence)
+    return float(np.mean((values >= low * dofs) & (values <= high * dofs)))
 
 
 def below_fraction(

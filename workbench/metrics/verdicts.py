@@ -36,7 +36,8 @@ import enum
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
+
+from workbench.metrics.consistency import per_dof_band
 
 MIN_RUNS = 10
 """Fewer runs decide nothing: the cell reads ``too few runs`` (per-step NEES cells)."""
@@ -161,7 +162,7 @@ def cell_statistic(
     smallest = float(min(d.min() for d in runs_dofs))
     nu = float(np.clip(np.mean(totals) / tau, smallest, np.mean(totals)))
     level = cell_level(runs) if level is None else level
-    lower, upper = chi2.ppf([0.5 * level, 1.0 - 0.5 * level], runs * nu) / (runs * nu)
+    lower, upper = (float(x) for x in per_dof_band(runs * nu, 1.0 - level))
     updates = sum(len(v) for v in runs_values)
     if runs < MIN_RUNS and not (pooled and updates >= MIN_POOLED_UPDATES):
         verdict = Verdict.TOO_FEW_RUNS

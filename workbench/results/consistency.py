@@ -23,12 +23,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import chi2
 
 from datasets.estimate import Estimate
 from datasets.sequence import Sequence
 from datasets.trajectory_io import save_npz_atomic
-from workbench.metrics.consistency import CONFIDENCE
+from workbench.metrics.consistency import CONFIDENCE, inside_fraction, per_dof_band
 from workbench.metrics.data_association import landmark_id_mapping
 from workbench.metrics.state_errors import (
     NeesSeries,
@@ -265,12 +264,12 @@ def average_runs(runs: list[StepSeries], confidence: float = CONFIDENCE) -> Aver
     dof = np.sum([run.dof[index] for run, index in zip(runs, indices, strict=True)], axis=0)
     keep = dof > 0
     times, total, dof = times[keep], total[keep], dof[keep]
-    tail = 0.5 * (1.0 - confidence)
+    lower, upper = per_dof_band(dof, confidence)
     return AveragedSeries(
         t=np.asarray(times, dtype=float),
         mean=total / dof,
-        lower=chi2.ppf(tail, dof) / dof,
-        upper=chi2.ppf(1.0 - tail, dof) / dof,
+        lower=lower,
+        upper=upper,
         dof=dof.astype(int),
         runs=len(runs),
         aligned_by=how,
@@ -347,6 +346,4 @@ def pooled_nis(runs: list[dict[str, StepSeries]]) -> tuple[float | None, float |
     dofs = np.concatenate([s.dof for s in series])
     if dofs.sum() == 0:
         return None, None
-    tail = 0.5 * (1.0 - CONFIDENCE)
-    inside = (values >= chi2.ppf(tail, dofs)) & (values <= chi2.ppf(1.0 - tail, dofs))
-    return float(values.sum() / dofs.sum()), float(np.mean(inside))
+    return float(values.sum() / dofs.sum()), inside_fraction(values, dofs)
