@@ -53,12 +53,14 @@ def main() -> None:
     ratios: dict[str, list[float]] = {"posterior": [], "prior": []}
     for seed in seed_range(args.seeds):
         sequence = load_scenario("aghili-rover", seed, options)
-        _, reference = run(sequence, landmark_sigma_m=TRUE_SIGMA_M, adaptive_noise=False)
+        _, reference = run(
+            sequence, landmark_measurement_sigma_m=TRUE_SIGMA_M, adaptive_noise=False
+        )
         reference_rmse = position_rmse(sequence, reference)
         for form in ratios:
             adaptive, estimate = run(
                 sequence,
-                landmark_sigma_m=TRUE_SIGMA_M * np.sqrt(10.0),
+                landmark_measurement_sigma_m=TRUE_SIGMA_M * np.sqrt(10.0),
                 adaptive_noise=True,
                 adaptive_residual=form,
             )

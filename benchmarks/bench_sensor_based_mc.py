@@ -6,7 +6,7 @@ two-sided 95% bounds, the fraction of steps inside, the per-block averaged NEES,
 and association precision/recall (when the filter runs JCBB).
 
     /work/venv/bin/python benchmarks/bench_sensor_based_mc.py --runs 50 --duration 60 \
-        [--association ids|jcbb] [--set sigma_velocity_m_s=0.03 ...] [--data noise_scale=1]
+        [--association ids|jcbb] [--set velocity_walk_m_s_sqrt_s=0.03 ...] [--data noise_scale=1]
 """
 
 from __future__ import annotations

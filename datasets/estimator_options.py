@@ -3,15 +3,17 @@ every filter and smoother (``--set gate_probability=0.99`` gates the same way ev
 
 Estimator configs inherit these pydantic models, so the keys stay flat on the command line
 and ``workbench list --verbose`` shows them with one description. The algorithms behind
-the association options live in ``filters.association``.
+the association options live in ``filters.association``; the options of an estimator's
+model (motion noise, priors, gaps, landmark noise) in ``datasets.model_options``.
 """
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
+from pydantic.fields import FieldInfo
 
 from datasets.errors import InputError
 
@@ -80,6 +82,26 @@ class MeasurementNoiseOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
     measurement_noise_scale: float = Field(
         1.0, gt=0, description="multiplies the landmark covariances the scans carry"
+    )
+
+
+ESTIMATOR_NOTE = " [here: "
+"""Opens the part of a shared field's description that one estimator adds (``for_estimator``)."""
+
+
+def for_estimator(model: type[BaseModel], name: str, note: str, **changes: Any) -> Any:
+    """The shared field ``name`` of ``model`` as one estimator declares it: the same
+    description with ``note`` appended (its own default and why: the paper's value, say),
+    and ``changes`` (``default=...``) applied. Redeclare it with the same annotation::
+
+        velocity_walk_m_s_sqrt_s: float | list[float] = for_estimator(
+            VelocityWalkOptions, "velocity_walk_m_s_sqrt_s", "0.3: ...", default=0.3
+        )
+
+    ``tests/test_option_vocabulary.py`` accepts a name with two defaults only so."""
+    shared = model.model_fields[name]
+    return FieldInfo.merge_field_infos(
+        shared, Field(**changes), description=f"{shared.description}{ESTIMATOR_NOTE}{note}]"
     )
 
 

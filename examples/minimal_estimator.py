@@ -24,7 +24,9 @@ from datasets.sequence import Sequence
 
 class MinimalOdometryConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")  # a misspelt --set key is an error
-    noise_scale: float = Field(1.0, gt=0, description="multiplies the odometry's covariance")
+    odometry_noise_scale: float = Field(
+        1.0, gt=0, description="multiplies the odometry covariance of the data"
+    )
 
 
 class MinimalOdometry:
@@ -50,7 +52,7 @@ class MinimalOdometry:
         # right perturbation: the old error seen from the new frame (Ad of the increment's
         # inverse), then the increment's own noise
         jacobian = np.array([[c, s, s * dx - c * dy], [-s, c, c * dx + s * dy], [0, 0, 1]])
-        noise = self.config.noise_scale * np.asarray(measurement.covariance, dtype=float)
+        noise = self.config.odometry_noise_scale * np.asarray(measurement.covariance, dtype=float)
         self.covariance = jacobian @ self.covariance @ jacobian.T + noise
         self.covariance = 0.5 * (self.covariance + self.covariance.T)
         self.pose[:2] += rot2(self.pose[2]) @ np.array([dx, dy])

@@ -4,26 +4,47 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.estimator_options import (
     AssociationOptions,
     MeasurementNoiseOptions,
     RecordingOptions,
+    for_estimator,
+)
+from datasets.model_options import (
+    AnchorOptions,
+    GapOptions,
+    GyroNoiseOptions,
+    InitialAccelBiasOptions,
+    InitialPriorOptions,
+    IntervalRate,
+    IntervalRateOptions,
+    OdometryLateralOptions,
+    OdometryOptions,
+    VelocityWalkOptions,
 )
 
 
-class SmootherConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOptions):
-    """Options shared by every smoother mode (association, snapshot and noise-scale options:
-    the shared vocabulary of ``datasets.estimator_options``)."""
+class SmootherConfig(
+    AssociationOptions,
+    RecordingOptions,
+    MeasurementNoiseOptions,
+    AnchorOptions,
+    GapOptions,
+    InitialPriorOptions,
+    InitialAccelBiasOptions,
+    OdometryOptions,
+    OdometryLateralOptions,
+    VelocityWalkOptions,
+    GyroNoiseOptions,
+    IntervalRateOptions,
+):
+    """Options shared by every smoother mode (association, snapshot, noise-scale, anchor,
+    gap, prior, odometry, motion-noise and interval options: the shared vocabulary of
+    ``datasets.estimator_options`` and ``datasets.model_options``)."""
 
     model_config = ConfigDict(extra="forbid")
-    anchors: int | None = Field(
-        None,
-        ge=0,
-        description="the first N of sequence.known_landmarks become known landmarks (tight priors), as for the filters; "
-        "None: 3 when the dataset offers known landmarks (the aghili filter's default), else 0",
-    )
     anchor_sigma_m: float = Field(
         1e-3, gt=0, description="std of an anchor landmark's prior [m] (tight: 'known')"
     )
@@ -32,28 +53,10 @@ class SmootherConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOptio
         ge=1,
         description="also open a keyframe every k motion samples (None: only at scans/GPS fixes)",
     )
-    max_imu_gap_s: float = Field(
-        0.5, gt=0, description="a gap between motion samples longer than this is an InputError [s]"
-    )
     gravity_m_s2: float | None = Field(
         None,
         gt=0,
         description="gravity magnitude [m/s^2]; None: sequence.metadata['gravity_m_s2'] or 9.81",
-    )
-    position_sigma_m: float | None = Field(
-        None, gt=0, description="initial position prior std [m]; None: sequence.initial_state"
-    )
-    rotation_sigma_rad: float | None = Field(
-        None, gt=0, description="initial rotation prior std [rad]; None: sequence.initial_state"
-    )
-    velocity_sigma_m_s: float | None = Field(
-        None, gt=0, description="initial velocity prior std [m/s]; None: sequence.initial_state"
-    )
-    gyro_bias_sigma_rad_s: float | None = Field(
-        None, gt=0, description="initial gyro bias std [rad/s]; None: sequence.noise, else 0.01"
-    )
-    accel_bias_sigma_m_s2: float | None = Field(
-        None, gt=0, description="initial accel bias std [m/s^2]; None: sequence.noise, else 0.1"
     )
     landmark_factor: Literal["bearing-range", "cartesian"] = Field(
         "bearing-range",
@@ -68,9 +71,11 @@ class SmootherConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOptio
     use_gps: bool = Field(
         True, description="add GPS position factors when the sequence has GPS fixes"
     )
-    use_odometry: bool = Field(
-        True,
-        description="3-D: add relative-pose factors from 6-D odometry (lidar) when the sequence has it",
+    use_odometry: bool = for_estimator(
+        OdometryOptions,
+        "use_odometry",
+        "2-D: odometry between-factors (false: the gyro-only model); 3-D: relative-pose "
+        "factors from 6-D (lidar) odometry beside the IMU",
     )
     factorization: Literal["CHOLESKY", "QR"] = Field(
         "CHOLESKY",
@@ -80,29 +85,46 @@ class SmootherConfig(AssociationOptions, RecordingOptions, MeasurementNoiseOptio
     relinearize_threshold: float = Field(0.05, gt=0, description="iSAM2 relinearisation threshold")
     relinearize_skip: int = Field(1, ge=1, description="iSAM2 relinearise every k updates")
     extra_iterations: int = Field(0, ge=0, description="extra iSAM2 update() calls per keyframe")
-    planar_velocity_walk_m_s2: float | list[float] = Field(
-        0.1,
-        description="2-D gyro-only model: body-velocity random-walk density [m/s^2/sqrt(Hz)]; "
-        "or one value per body axis [forward, lateral]",
+    velocity_walk_m_s_sqrt_s: float | list[float] = for_estimator(
+        VelocityWalkOptions, "velocity_walk_m_s_sqrt_s", "2-D gyro-only model"
     )
-    planar_gyro_density: float | None = Field(
-        None, gt=0, description="2-D gyro-only: gyro white-noise density; None: sequence.noise"
+    gyro_noise_density_rad_s_sqrt_hz: float | None = for_estimator(
+        GyroNoiseOptions,
+        "gyro_noise_density_rad_s_sqrt_hz",
+        "2-D gyro-only model (3-D: the IMU noise the dataset states); an error where the "
+        "dataset states none",
     )
-    odometry_lateral_sigma_m_s: float = Field(
-        0.02, gt=0, description="2-D velocity odometry: lateral-slip floor [m/s]"
+    gyro_bias_walk_rad_s_sqrt_s: float | None = for_estimator(
+        GyroNoiseOptions,
+        "gyro_bias_walk_rad_s_sqrt_s",
+        "2-D gyro-only model (3-D: the IMU noise the dataset states); 1e-4 where the dataset "
+        "states none",
     )
-    imu_interpolation: bool = Field(
-        True,
-        description="IMU or rate gyro: integrate the line between consecutive samples (instantaneous samples, the filters' 'average'); false: zero-order hold",
+    odometry_lateral_sigma_m_s: float = for_estimator(
+        OdometryLateralOptions,
+        "odometry_lateral_sigma_m_s",
+        "added to every held velocity sample's increment, also where the dataset states an "
+        "odometry noise model",
+    )
+    interval_rate: IntervalRate = for_estimator(
+        IntervalRateOptions,
+        "interval_rate",
+        "IMU and rate gyro alike: each sub-interval between keyframes takes the value of the "
+        "straight line between its two samples at its midpoint ('average'), or one sample",
     )
 
 
-class Isam2Config(SmootherConfig):
-    """Options of ``smoother-isam2``."""
+class CausalCovarianceOptions(BaseModel):
+    """The incremental smoothers' causal history (the batch smoother has none)."""
 
+    model_config = ConfigDict(extra="forbid")
     causal_covariances: bool = Field(
         True, description="marginal covariances after every keyframe (NEES of the causal history)"
     )
+
+
+class Isam2Config(SmootherConfig, CausalCovarianceOptions):
+    """Options of ``smoother-isam2``."""
 
 
 class BatchConfig(SmootherConfig):
@@ -115,7 +137,7 @@ class BatchConfig(SmootherConfig):
     )
 
 
-class FixedLagConfig(SmootherConfig):
+class FixedLagConfig(SmootherConfig, CausalCovarianceOptions):
     """Options of ``smoother-fixed-lag``."""
 
     lag_s: float = Field(
@@ -147,11 +169,11 @@ class FixedLagConfig(SmootherConfig):
         "(5 s window: sim:guerreiro-loop seed 0: pose NEES 215 per 3 dof against 6.4; "
         "victoria-park: 7.25 m from the batch smoother, 5 s)",
     )
-    causal_covariances: bool = Field(True, description="marginal covariances after every keyframe")
-    factorization: Literal["CHOLESKY", "QR"] = Field(
-        "QR",
-        description="iSAM2 factorisation of the window: QR by default here, because a switch to QR "
-        "after Cholesky has failed mid-run does not recover a window cleanly (measured on "
-        "victoria-park: NIS per dof 17.8 after a switch at t=954 s against 0.25 with QR "
-        "throughout, at 7 % more time)",
+    factorization: Literal["CHOLESKY", "QR"] = for_estimator(
+        SmootherConfig,
+        "factorization",
+        "QR, because a switch to QR after Cholesky has failed mid-run does not recover a "
+        "window cleanly (measured on victoria-park: NIS per dof 17.8 after a switch at "
+        "t=954 s against 0.25 with QR throughout, at 7 % more time)",
+        default="QR",
     )

@@ -12,7 +12,7 @@ def held_interval(
     t: float,
     max_gap_s: float,
     sensor: str,
-    option: str = "max_imu_gap_s",
+    option: str = "max_gap_s",
 ) -> float:
     """Seconds to integrate the held sample from ``cursor`` up to ``t`` (0 when nothing is
     held or ``t`` is not later); ``InputError`` when the sample would be held longer than

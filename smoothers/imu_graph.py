@@ -9,7 +9,7 @@ Conventions (DESIGN.md, and GTSAM's own):
 
 Sample timing: samples are instantaneous values; over ``[t_i, t_{i+1})`` the value used is
 the straight line between the two samples at the sub-interval's midpoint (zero-order hold of
-``t_i``'s sample with ``imu_interpolation=false``), and the specific force is applied at the
+``t_i``'s sample with ``interval_rate=hold``), and the specific force is applied at the
 sub-interval's mid-attitude (``specific_force_at_step_start``). A keyframe that falls between
 two samples splits that interval, so every keyframe sits at the exact time of its measurement.
 
@@ -33,6 +33,7 @@ from gtsam.symbol_shorthand import B, V, X
 from datasets.errors import InputError
 from datasets.estimate import EstimateRecorder
 from datasets.measurements import ImuSample
+from datasets.model_options import IntervalRate
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix
 from datasets.sequence import InitialState, NoiseSpec
 from datasets.state import BlockName, Frame
@@ -138,11 +139,13 @@ class KeyframeImuIntegrator:
     new one; ``close(t_k)`` integrates the held sample up to ``t_k`` and returns the
     preintegrated measurement of ``[t_prev_keyframe, t_k]``, then starts a new one.
 
-    With ``interpolate`` (default) the value used over a sub-interval is the linear
-    interpolation between the held sample and the next one at the sub-interval's midpoint
-    (samples are instantaneous values, e.g. the simulator's), which needs the next sample:
-    ``lookahead`` is set by the smoother before it closes a keyframe (keyframes are
-    committed only once the stream has moved past their time). Without it: zero-order hold.
+    With ``interval_rate="average"`` (default) the value used over a sub-interval is the
+    linear interpolation between the held sample and the next one at the sub-interval's
+    midpoint (samples are instantaneous values, e.g. the simulator's), which needs the next
+    sample: ``lookahead`` is set by the smoother before it closes a keyframe (keyframes are
+    committed only once the stream has moved past their time). ``"hold"``: zero-order hold;
+    ``"latest"``: the next sample (samples are averages over the interval ending at them).
+    Without a next sample (the end of the stream) both hold.
 
     Attributes:
         params: GTSAM preintegration parameters.
@@ -158,7 +161,7 @@ class KeyframeImuIntegrator:
     pim: gtsam.PreintegratedCombinedMeasurements | None = None
     integrated_s: float = 0.0
     samples_since_keyframe: int = 0
-    interpolate: bool = True
+    interval_rate: IntervalRate = "average"
     lookahead: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def start(self, t: float, bias: gtsam.imuBias.ConstantBias) -> None:
@@ -174,13 +177,16 @@ class KeyframeImuIntegrator:
             return
         assert self.pim is not None and self.held_t is not None
         gyro, accel = self.held_gyro, self.held_accel
-        if self.interpolate and self.lookahead is not None and self.lookahead[0] > self.held_t:
+        following = self.lookahead is not None and self.lookahead[0] > self.held_t
+        if self.interval_rate == "average" and following:
             # Samples are instantaneous values: use the straight line between this sample
             # and the next one at the sub-interval's midpoint (second-order accurate).
             next_t, next_gyro, next_accel = self.lookahead
             weight = (0.5 * (self.cursor + t) - self.held_t) / (next_t - self.held_t)
             gyro = gyro + weight * (next_gyro - gyro)
             accel = accel + weight * (next_accel - accel)
+        elif self.interval_rate == "latest" and following:
+            _, gyro, accel = self.lookahead
         accel = specific_force_at_step_start(accel, gyro, dt, self.pim.biasHat())
         self.pim.integrateMeasurement(accel, gyro, dt)
         self.integrated_s += dt
@@ -199,7 +205,7 @@ class KeyframeImuIntegrator:
             if t - self.cursor > self.max_gap_s:
                 raise InputError(
                     f"IMU gap: first sample at t={t:.6f} s, {t - self.cursor:.3f} s after the start "
-                    f"(max_imu_gap_s={self.max_gap_s})"
+                    f"(max_gap_s={self.max_gap_s})"
                 )
             # The first sample also covers the short stretch from the start to itself.
             self._hold(t, gyro, accel)
@@ -246,10 +252,14 @@ class ImuMotion:
     dimension = 3
 
     def __init__(
-        self, noise: ImuNoise, gravity_m_s2: float, max_gap_s: float, interpolate: bool = True
+        self,
+        noise: ImuNoise,
+        gravity_m_s2: float,
+        max_gap_s: float,
+        interval_rate: IntervalRate = "average",
     ) -> None:
         self.params = combined_params(noise, gravity_m_s2)
-        self.integrator = KeyframeImuIntegrator(self.params, max_gap_s, interpolate=interpolate)
+        self.integrator = KeyframeImuIntegrator(self.params, max_gap_s, interval_rate=interval_rate)
         self.preintegrations: dict[int, gtsam.PreintegratedCombinedMeasurements] = {}
 
     @staticmethod

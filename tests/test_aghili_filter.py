@@ -131,9 +131,9 @@ def test_adaptive_r_converges_from_a_tenfold_wrong_guess(seed: int) -> None:
         )
 
     adaptive, adaptive_estimate = run(
-        sequence, landmark_sigma_m=0.2 * np.sqrt(10.0), adaptive_noise=True
+        sequence, landmark_measurement_sigma_m=0.2 * np.sqrt(10.0), adaptive_noise=True
     )
-    _, reference_estimate = run(sequence, landmark_sigma_m=0.2, adaptive_noise=False)
+    _, reference_estimate = run(sequence, landmark_measurement_sigma_m=0.2, adaptive_noise=False)
     variances = np.diag(adaptive.noise_window.estimate())
     np.testing.assert_allclose(variances, 0.04, rtol=0.25)
     assert position_rmse(adaptive_estimate) <= 1.1 * position_rmse(reference_estimate)

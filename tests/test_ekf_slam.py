@@ -138,10 +138,10 @@ def test_acceleration_noise_per_body_axis_lies_along_the_heading() -> None:
     np.testing.assert_allclose(
         isotropic[layout.velocity, layout.velocity], 0.04 * dt * np.eye(2), atol=1e-15
     )
-    with pytest.raises(InputError, match="acceleration_density"):
+    with pytest.raises(InputError, match="velocity_walk_m_s_sqrt_s"):
         from datasets.estimator_options import per_body_axis
 
-        per_body_axis([0.1, 0.2, 0.3], 2, "acceleration_density")
+        per_body_axis([0.1, 0.2, 0.3], 2, "velocity_walk_m_s_sqrt_s")
 
 
 @pytest.mark.parametrize("dimension", [2, 3])
@@ -371,7 +371,7 @@ def test_three_dimensional_gyro_run_tracks_a_noise_free_helix() -> None:
             t=0.0, position=np.zeros(3), rotation=np.array([1.0, 0, 0, 0]), velocity=v_body.copy()
         ),
     )
-    _, estimate = run(sequence, acceleration_density=0.05)
+    _, estimate = run(sequence, velocity_walk_m_s_sqrt_s=0.05)
     pose = estimate.causal.pose
     assert pose.covariances.shape[1:] == (6, 6)
     assert np.linalg.norm(pose.positions[-1] - position) < 0.05
@@ -448,13 +448,13 @@ def test_landmark_seen_once_is_kept_or_pruned() -> None:
     )
     _, kept = run(sequence)
     assert len(kept.landmarks) == 2 and "1 seen only once" in kept.notes[0]
-    _, pruned = run(sequence, prune_single_sightings_after_s=1.0)
+    _, pruned = run(sequence, probation_s=1.0)
     assert len(pruned.landmarks) == 1
     assert any(event.kind == "landmarks_pruned" for event in pruned.diagnostics.events)
 
 
 def test_a_one_off_sighting_is_provisional_and_dropping_it_is_exact() -> None:
-    """The landmark initialisation delay (``prune_single_sightings_after_s``): a landmark is
+    """The landmark initialisation delay (``probation_s``): a landmark is
     provisional until a second sighting; one never seen again is marginalised out. One
     sighting of a new landmark carries no information on the rest of the state, so the run
     with a one-off clutter sighting (no ids) must read exactly as the run without it: the
@@ -475,8 +475,8 @@ def test_a_one_off_sighting_is_provisional_and_dropping_it_is_exact() -> None:
         stream=lambda: iter(measurements),
         initial_state=clean.initial_state,
     )
-    _, reference = run(clean, prune_single_sightings_after_s=1.0)
-    _, delayed = run(cluttered, prune_single_sightings_after_s=1.0)
+    _, reference = run(clean, probation_s=1.0)
+    _, delayed = run(cluttered, probation_s=1.0)
     _, kept = run(cluttered)
     assert len(kept.landmarks) == len(reference.landmarks) + 1
     assert len(delayed.landmarks) == len(reference.landmarks)

@@ -22,7 +22,7 @@ def test_run_compare_and_load_runs(tmp_path: Path) -> None:
         "ekf-slam",
         "sim:circle",
         seed=2,
-        options={"acceleration_density": [0.3, 0.3, 0.3], "gate_probability": 0.99},
+        options={"velocity_walk_m_s_sqrt_s": [0.3, 0.3, 0.3], "gate_probability": 0.99},
         data={"duration_s": 2},
         out=tmp_path / "ekf",
     )

@@ -38,7 +38,7 @@ def test_config_file_then_set_overrides(tmp_path):
     path = tmp_path / "c.yaml"
     path.write_text("max_gap_s: 2.5\ngyro_velocity_sigma_m_s2: 0.3\n")
     config = resolve_config(DeadReckoning, path, {"max_gap_s": "4"})
-    assert config.max_gap_s == 4.0 and np.isclose(config.gyro_velocity_sigma_m_s2, 0.3)
+    assert config.max_gap_s == 4.0 and np.isclose(config.velocity_walk_m_s_sqrt_s, 0.3)
 
 
 def test_bad_config_value_names_key(tmp_path):

@@ -33,7 +33,11 @@ pytestmark = pytest.mark.study
 
 SEEDS = range(20)
 DURATION_S = "20"
-MATCHED_MODEL = {"association": "ids", "sigma_velocity_m_s": [0.02, 0.0], "sigma_landmark_m": 0.0}
+MATCHED_MODEL = {
+    "association": "ids",
+    "velocity_walk_m_s_sqrt_s": [0.02, 0.0],
+    "landmark_walk_m_sqrt_s": 0.0,
+}
 
 
 def _vehicle_errors(estimate, sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -88,7 +92,7 @@ def test_vehicle_nees_inside_the_95_percent_band_when_the_motion_follows_the_mod
 def test_deterministic_speed_changes_show_up_as_velocity_nees_following_the_acceleration() -> None:
     """The default profile: the constant-velocity model lags the sinusoidal speed; the
     averaged velocity NEES tracks |acceleration| (the model error, reported, not tuned away)."""
-    config = {"association": "ids", "sigma_velocity_m_s": 0.02, "sigma_landmark_m": 0.0}
+    config = {"association": "ids", "velocity_walk_m_s_sqrt_s": 0.02, "landmark_walk_m_sqrt_s": 0.0}
     t, vehicle, velocity, bias, _, sequence = _monte_carlo({}, config)
     velocity_avg = averaged_nees(np.stack(velocity), dof=2)
     assert averaged_nees(np.stack(bias), dof=1).inside_fraction >= 0.8

@@ -114,7 +114,7 @@ def test_the_landmark_sensor_field_of_view_is_stated_and_used() -> None:
     assert sequence.noise.landmark_range_m == 30.0
     stated = SensorBasedSlam(SensorBasedConfig(), sequence)
     assert stated.manager.policy.field_of_view_deg == 180.0
-    chosen = SensorBasedSlam(SensorBasedConfig(field_of_view_deg=90), sequence)
+    chosen = SensorBasedSlam(SensorBasedConfig(landmark_field_of_view_deg=90), sequence)
     assert chosen.manager.policy.field_of_view_deg == 90.0
 
 

@@ -250,8 +250,10 @@ def test_the_landmark_disturbance_is_zero_unless_the_paper_preset_or_the_option_
 
     assert landmark_disturbance(SensorBasedConfig()) == 0.0
     assert landmark_disturbance(SensorBasedConfig(tuning="paper")) == PAPER_LANDMARK_SIGMA_M == 0.05
-    assert landmark_disturbance(SensorBasedConfig(tuning="paper", sigma_landmark_m=0.0)) == 0.0
-    assert landmark_disturbance(SensorBasedConfig(sigma_landmark_m=0.02)) == 0.02
+    assert (
+        landmark_disturbance(SensorBasedConfig(tuning="paper", landmark_walk_m_sqrt_s=0.0)) == 0.0
+    )
+    assert landmark_disturbance(SensorBasedConfig(landmark_walk_m_sqrt_s=0.02)) == 0.02
 
 
 def _odometry_only(sequence, shift_s: float):

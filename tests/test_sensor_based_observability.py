@@ -22,7 +22,7 @@ from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
 from tests.sensor_based_support import planar_sequence, run
 
 DURATION_S = 120.0
-BIAS_WALK = {"sigma_gyro_bias_rad_s": 5e-3, "sigma_velocity_m_s": 0.01}
+BIAS_WALK = {"gyro_bias_walk_rad_s_sqrt_s": 5e-3, "velocity_walk_m_s_sqrt_s": 0.01}
 
 
 def _vehicle_trace_ratio(sequence, **config) -> tuple[float, float, np.ndarray]:

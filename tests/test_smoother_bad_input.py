@@ -41,7 +41,7 @@ def test_imu_gap_longer_than_the_threshold_is_an_input_error_naming_the_time(rov
         lambda items: [m for m in items if not (isinstance(m, ImuSample) and 1.0 < m.t < 2.0)],
     )
     with pytest.raises(InputError, match=r"IMU gap: no sample between t=1\.000000 s"):
-        _run(gapped, max_imu_gap_s=0.5)
+        _run(gapped, max_gap_s=0.5)
 
 
 def test_duplicate_time_stamps_are_merged_or_skipped(rover):

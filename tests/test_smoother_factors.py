@@ -219,7 +219,8 @@ def test_gyro_only_motion_residual_covariance_matches_monte_carlo_with_gyro_nois
 def test_gyro_accumulator_integrates_instantaneous_samples_exactly_for_a_linear_rate():
     """A rate ramp sampled at 10 Hz (the loop's gyro): the line between samples integrates
     it exactly, also for a keyframe between two samples (with the next one looked ahead);
-    the zero-order hold is off by half the ramp times dt^2 per interval."""
+    the zero-order hold is off by half the ramp times dt^2 per interval, the later sample by
+    as much the other way."""
 
     def rate(t):
         return 0.2 + 0.5 * t
@@ -227,8 +228,12 @@ def test_gyro_accumulator_integrates_instantaneous_samples_exactly_for_a_linear_
     def exact(a, b):
         return 0.2 * (b - a) + 0.25 * (b * b - a * a)
 
-    for interpolate, expected_error in ((True, 0.0), (False, -0.5 * 0.5 * 0.1**2 * 3)):
-        gyro = GyroAccumulator(max_gap_s=1.0, interpolate=interpolate)
+    for interval_rate, expected_error in (
+        ("average", 0.0),
+        ("hold", -0.5 * 0.5 * 0.1**2 * 3),
+        ("latest", 0.5 * 0.5 * 0.1**2 * 3),
+    ):
+        gyro = GyroAccumulator(max_gap_s=1.0, interval_rate=interval_rate)
         gyro.start(0.0)
         for t in (0.0, 0.1, 0.2, 0.3):
             gyro.add(GyroSample(t=t, rate=np.array([rate(t)])))

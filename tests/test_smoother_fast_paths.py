@@ -211,7 +211,7 @@ def test_batch_marginals_fall_back_to_dense_qr_where_cholesky_fails():
     sequence = load_dataset("sim:guerreiro-loop", 0, {"duration_s": "5", "speed_profile": "random"})
     _, estimate = _run(
         SmootherBatch,
-        SmootherBatch.Config(planar_velocity_walk_m_s2=[0.02, 0.0]),
+        SmootherBatch.Config(velocity_walk_m_s_sqrt_s=[0.02, 0.0]),
         sequence,
     )
     events = [e for e in estimate.diagnostics.events if e.kind == "factorization_fallback"]

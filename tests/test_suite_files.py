@@ -49,8 +49,8 @@ def test_yaml_values_reach_the_options_as_the_cli_text_would() -> None:
     )
     assert ("speed_reversion_s", "null") in loop.options
     assert loop.options_for("sensor-based") == (
-        ("sigma_velocity_m_s", "[0.01, 0.0025]"),
-        ("sigma_landmark_m", "0"),
+        ("velocity_walk_m_s_sqrt_s", "[0.01, 0.0025]"),
+        ("landmark_walk_m_sqrt_s", "0"),
     )
 
 
@@ -71,7 +71,7 @@ def test_a_copied_and_edited_suite_runs(tmp_path: Path, capsys) -> None:
         {
             "name": "ekf-slam",
             "label": "ekf-slam (slow walk)",
-            "set": {"acceleration_density": 0.05},
+            "set": {"velocity_walk_m_s_sqrt_s": 0.05},
         },
     ]
     values["runs"] = 1
@@ -96,7 +96,7 @@ def test_a_copied_and_edited_suite_runs(tmp_path: Path, capsys) -> None:
             out / "runs" / "circle-3-s" / "ekf-slam-slow-walk" / "seed-0" / "bench_request.json"
         ).read_text()
     )
-    assert request["overrides"] == {"acceleration_density": "0.05"}
+    assert request["overrides"] == {"velocity_walk_m_s_sqrt_s": "0.05"}
 
 
 def _pairs_with_status(out: Path) -> list[tuple[str, str, str]]:
@@ -147,9 +147,9 @@ def test_set_names_its_estimator_everywhere() -> None:
 def test_run_takes_the_prefixed_set_and_bench_labels_what_was_set(tmp_path: Path, capsys) -> None:
     out = tmp_path / "run"
     argv = ["run", "ekf-slam", "sim:circle", "--data", "duration_s=2", "--no-plots"]
-    assert main([*argv, "--out", str(out), "--set", "ekf-slam.acceleration_density=0.2"]) == 0
+    assert main([*argv, "--out", str(out), "--set", "ekf-slam.velocity_walk_m_s_sqrt_s=0.2"]) == 0
     assert yaml.safe_load((out / "config.yaml").read_text())["config"][
-        "acceleration_density"
+        "velocity_walk_m_s_sqrt_s"
     ] == pytest.approx(0.2)
     assert main([*argv, "--out", str(tmp_path / "x"), "--set", "aghili.anchors=2"]) == 2
     assert "not among the estimators" in capsys.readouterr().err
@@ -157,15 +157,16 @@ def test_run_takes_the_prefixed_set_and_bench_labels_what_was_set(tmp_path: Path
     bench = tmp_path / "bench"
     argv = ["bench", "tiny", "--runs", "1", "--out", str(bench), "--no-plots"]
     assert (
-        main([*argv, "--dataset", "sim:circle", "--set", "ekf-slam.acceleration_density=0.2"]) == 0
+        main([*argv, "--dataset", "sim:circle", "--set", "ekf-slam.velocity_walk_m_s_sqrt_s=0.2"])
+        == 0
     )
     shown = capsys.readouterr().out
     # the terminal table shows the label whole (rich markup would eat "[...]")
-    assert "ekf-slam [acceleration" in shown
+    assert "ekf-slam [velocity_walk" in shown
     rows = list(csv.DictReader((bench / "table.csv").open()))
     assert {row["estimator"] for row in rows} == {
         "dead-reckoning",
-        "ekf-slam [acceleration_density=0.2]",
+        "ekf-slam [velocity_walk_m_s_sqrt_s=0.2]",
     }
 
 

@@ -9,7 +9,7 @@
     runs = load_runs(["runs"])                        # one row per run, metrics.json's keys
     estimate = load_estimate("runs/ekf")              # the datasets.Estimate a folder holds
 
-Options are Python values (``{"gate_probability": 0.99, "acceleration_density": [0.02,
+Options are Python values (``{"gate_probability": 0.99, "velocity_walk_m_s_sqrt_s": [0.02,
 0.005]}``), validated exactly as ``--set`` / ``--data`` are.
 """
 
@@ -89,14 +89,21 @@ def compare(paths: list[str | Path], out: str | Path | None = None, plots: bool 
     """The comparison table of run folders (or folders holding them) as a pandas
     DataFrame, one row per (dataset, estimator), table.csv's columns; with ``out``, also
     write the tables (and, with ``plots``, the figures) as ``workbench report`` does."""
-    from workbench.reporting import write_report
+    from workbench.owned_folders import claim_collection, exclusive
+    from workbench.reporting import report_rows, write_report
     from workbench.results.runs import load_runs as read_records
-    from workbench.results.summary import summarize, summary_frame
+    from workbench.results.summary import summary_frame
 
     records = read_records([Path(p) for p in paths])
-    if out is not None:
-        write_report(records, Path(out), plot_formats=("png",) if plots else ())
-    return summary_frame(summarize(records))
+    if out is None:
+        # the rows workbench report shows: one experiment per row (runs that differ in
+        # more than their seed are separate rows, labelled by what differs)
+        return summary_frame(report_rows(records).rows)
+    with exclusive(Path(out)):
+        report = write_report(
+            records, claim_collection(Path(out)), plot_formats=("png",) if plots else ()
+        )
+    return summary_frame(report.rows)
 
 
 def load_runs(paths: list[str | Path]):

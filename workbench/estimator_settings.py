@@ -11,8 +11,8 @@ from datasets.options import parse_assignments
 def settings_by_estimator(
     assignments: list[str] | tuple[str, ...], estimators: list[str]
 ) -> dict[str, dict[str, str]]:
-    """``["ekf-slam.acceleration_density=0.1"]`` -> ``{"ekf-slam": {"acceleration_density":
-    "0.1"}, ...}`` with an entry (possibly empty) for each of ``estimators``, the names the
+    """``["ekf-slam.velocity_walk_m_s_sqrt_s=0.1"]`` -> ``{"ekf-slam":
+    {"velocity_walk_m_s_sqrt_s": "0.1"}, ...}`` with an entry (possibly empty) for each of ``estimators``, the names the
     command runs. ``InputError`` for an estimator the command does not run, and for a bare
     key when it runs several."""
     from workbench.registry import ESTIMATORS

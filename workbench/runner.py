@@ -6,6 +6,7 @@ around the final ``estimate`` call), so cost columns are comparable across estim
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -18,6 +19,7 @@ from pydantic import BaseModel
 from datasets.errors import InputError
 from datasets.estimate import Estimate, Estimator, StepTiming, missing_sensors
 from datasets.measurements import Sensor
+from datasets.option_renames import renamed_options
 from datasets.options import build_model, yaml_value
 from datasets.sequence import Sequence
 from datasets.yaml_files import read_yaml_file
@@ -36,8 +38,9 @@ def resolve_config(
     """The estimator's config: class defaults, then the YAML file (estimator options, or a
     run folder's ``config.yaml``, whose resolved options it takes; read by
     ``datasets.yaml_files.read_yaml_file``: at most 1 MiB, UTF-8, no anchors, aliases or
-    repeated keys), then ``--set`` overrides. ``name``: the estimator as registered, for
-    errors."""
+    repeated keys), then ``--set`` overrides. An option under its name before issue 39
+    (``datasets.option_renames``) is taken under its new name with a ``warning:`` line.
+    ``name``: the estimator as registered, for errors and warnings."""
     values: dict[str, Any] = {}
     if config_file is not None:
         config_file = Path(config_file)
@@ -55,12 +58,30 @@ def resolve_config(
                     "estimator's resolved options)"
                 )
         values.update(loaded)
-    for key, text in (overrides or {}).items():
-        values[key] = yaml_value(text)
-    # errors name the estimator as registered (ekf-slam), not its class (EkfSlam)
-    return build_model(
-        estimator_class.Config, values, f"{name or estimator_class.__name__} options"
+    label = name or estimator_class.__name__
+    fields = estimator_class.Config.model_fields
+    # the file's old option names, then --set's: a --set under an old name overrides the
+    # file's value under either name
+    values, warnings = renamed_options(values, fields, label)
+    given, more = renamed_options(
+        {key: yaml_value(text) for key, text in (overrides or {}).items()}, fields, label
     )
+    values.update(given)
+    for line in warnings + more:
+        _warn_once(line)
+    # errors name the estimator as registered (ekf-slam), not its class (EkfSlam)
+    return build_model(estimator_class.Config, values, f"{label} options")
+
+
+_warned: set[str] = set()
+
+
+def _warn_once(line: str) -> None:
+    """One ``warning:`` line on stderr per renamed option and process (a sweep resolves the
+    same options for every run)."""
+    if line not in _warned:
+        _warned.add(line)
+        print(f"warning: {line}", file=sys.stderr)
 
 
 @dataclass(frozen=True)
@@ -154,9 +175,11 @@ def run_estimator(
     on_step: Callable[[float], None] | None = None,
 ) -> Estimate:
     """Feed the sequence to a fresh estimator and return its ``Estimate`` with timing. The
-    estimator is built on a view of the sequence without its ground truth."""
-    # the estimator sees the data, never the truth it is scored against
-    estimator = estimator_class(config, replace(sequence, ground_truth=None))
+    estimator is built on a view of the sequence without its ground truth and without its
+    front end's report."""
+    # the estimator sees the data, never the truth it is scored against, nor the front end's
+    # own poses it is compared with (Sequence.front_end)
+    estimator = estimator_class(config, replace(sequence, ground_truth=None, front_end=None))
     stamps: list[float] = []
     seconds: list[float] = []
     frames: list[float] = []

@@ -25,7 +25,7 @@ A suite file (the suite's name is the file's stem)::
       - ekf-slam                 # a name alone, or:
       - name: ekf-slam
         label: ekf-slam (slow walk)
-        set: {acceleration_density: 0.05}
+        set: {velocity_walk_m_s_sqrt_s: 0.05}
 
 Option values are YAML (numbers, booleans, lists, null) and reach the estimator and the
 loader exactly as the same text after ``--set``/``--data`` would. Keys are checked: a

@@ -6,16 +6,39 @@ from typing import Literal
 
 from pydantic import ConfigDict, Field
 
-from datasets.estimator_options import AssociationOptions, RecordingOptions
+from datasets.estimator_options import AssociationOptions, RecordingOptions, for_estimator
+from datasets.model_options import (
+    AnchorOptions,
+    GapOptions,
+    InitialAccelBiasOptions,
+    InitialPriorOptions,
+    LandmarkMeasurementNoiseOptions,
+)
 
 
-class AghiliConfig(AssociationOptions, RecordingOptions):
-    """Options of the Aghili adaptive EKF SLAM (``--set key=value``; association and snapshot
-    options: the shared vocabulary of ``datasets.estimator_options``)."""
+class AghiliConfig(
+    AssociationOptions,
+    RecordingOptions,
+    AnchorOptions,
+    GapOptions,
+    InitialPriorOptions,
+    InitialAccelBiasOptions,
+    LandmarkMeasurementNoiseOptions,
+):
+    """Options of the Aghili adaptive EKF SLAM (``--set key=value``; association, snapshot,
+    anchor, gap, prior and landmark-noise options: the shared vocabulary of
+    ``datasets.estimator_options`` and ``datasets.model_options``)."""
 
     model_config = ConfigDict(extra="forbid")
-    anchors: int = Field(
-        3, ge=1, description="r: number of known anchor landmarks fixing the map (section 2.1)"
+    anchors: int | None = for_estimator(
+        AnchorOptions,
+        "anchors",
+        "3, the paper's r (section 2.1; section 3, Proposition 1: observable with three "
+        "anchors not on a line), "
+        "from the first observations where the dataset offers none (anchor_source); at least "
+        "1, None as 3",
+        default=3,
+        ge=1,
     )
     anchor_source: Literal["auto", "known", "first-observation"] = Field(
         "auto",
@@ -41,26 +64,13 @@ class AghiliConfig(AssociationOptions, RecordingOptions):
         description="eq. (42) on post-fit residuals, R = mean(e e^T + H P+ H^T) (fails safe when P is off), "
         "or on prior residuals as printed, R = W - H P- H^T",
     )
-    landmark_sigma_m: float | None = Field(
-        None,
-        gt=0,
-        description="initial/fixed landmark std [m]; None: the covariances the scans carry",
+    landmark_measurement_sigma_m: float | None = for_estimator(
+        LandmarkMeasurementNoiseOptions,
+        "landmark_measurement_sigma_m",
+        "R before the adaptive estimate (eq. (42)) takes over, or throughout with "
+        "adaptive_noise=false",
     )
     process_noise: Literal["closed-form", "van-loan"] = Field(
         "closed-form",
         description="Q' by the verified closed form or by Van Loan's matrix exponential",
     )
-    initial_velocity_sigma_m_s: float | None = Field(
-        None, ge=0, description="initial velocity std [m/s]; None: the dataset's initial state"
-    )
-    initial_gyro_bias_sigma_rad_s: float | None = Field(
-        None,
-        ge=0,
-        description="initial gyro bias std [rad/s]; None: the dataset's noise spec, else 0.01",
-    )
-    initial_accel_bias_sigma_m_s2: float | None = Field(
-        None,
-        ge=0,
-        description="initial accelerometer bias std [m/s^2]; None: the dataset's noise spec, else 0.1",
-    )
-    max_gap_s: float = Field(1.0, gt=0, description="an IMU gap longer than this is an error [s]")

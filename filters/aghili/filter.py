@@ -131,6 +131,12 @@ class AghiliFilter:
         self.v = np.zeros(3) if start.velocity is None else np.array(start.velocity, dtype=float)
         self.b_g = np.zeros(3)  # paper sign: true = measured + b_g
         self.b_a = np.zeros(3)
+        position_sigma = config.initial_position_sigma_m
+        if position_sigma is None:
+            position_sigma = start.position_sigma_m
+        rotation_sigma = config.initial_rotation_sigma_rad
+        if rotation_sigma is None:
+            rotation_sigma = start.rotation_sigma_rad
         velocity_sigma = config.initial_velocity_sigma_m_s
         if velocity_sigma is None:
             velocity_sigma = start.velocity_sigma_m_s
@@ -149,8 +155,8 @@ class AghiliFilter:
         self.P = np.diag(
             np.repeat(
                 [
-                    (0.5 * start.rotation_sigma_rad) ** 2,  # dq_v is a half angle
-                    start.position_sigma_m**2,
+                    (0.5 * rotation_sigma) ** 2,  # dq_v is a half angle
+                    position_sigma**2,
                     velocity_sigma**2,
                     gyro_bias_sigma**2,
                     accel_bias_sigma**2,
@@ -164,7 +170,8 @@ class AghiliFilter:
         self._next_new_id = 0
 
         # anchors (section 2.1)
-        self.anchors = Anchors(config.anchors, config.anchor_source, sequence)
+        anchors = 3 if config.anchors is None else config.anchors
+        self.anchors = Anchors(anchors, config.anchor_source, sequence)
         if self.anchors.decision is not None:
             self.notes.append(self.anchors.decision)
         if self.anchors.note is not None:
@@ -185,7 +192,9 @@ class AghiliFilter:
             else None
         )
         self.fixed_r = (
-            None if config.landmark_sigma_m is None else np.eye(3) * config.landmark_sigma_m**2
+            None
+            if config.landmark_measurement_sigma_m is None
+            else np.eye(3) * config.landmark_measurement_sigma_m**2
         )
 
         self._last_imu: ImuSample | None = None

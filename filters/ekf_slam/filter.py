@@ -4,7 +4,7 @@ One joint Gaussian over the vehicle (``layout.VehicleLayout``) and every mapped 
 the world frame (Bailey, Nieto, Guivant, Stevens, Nebot 2006, section II; Dissanayake et
 al. 2001):
 
-- *Prediction* by the motion input the data offers (``config.motion_input``): planar
+- *Prediction* by the motion input the data offers (``config.use_odometry``): planar
   odometry (relative poses, or (v, omega) turned into ``(v dt, 0, omega dt)``) or, on
   gyro-only / IMU data, the gyro-driven constant-velocity model (``motion.predict_gyro_cv``;
   the IMU's accelerometer is not used). Only the vehicle rows and columns change:
@@ -20,10 +20,10 @@ al. 2001):
   own landmark only).
 - *Landmark initialisation* on first sight with the full cross-covariances
   (``filters.kalman.augment``): ``l = p + R z``, ``P_ll = G_v P_vv G_v^T + R Sigma_z R^T``,
-  ``P_lx = G_v P_vx``. With ``prune_single_sightings_after_s`` (the initialisation delay)
-  a landmark stays provisional until its second sighting and is marginalised out if none
-  comes in time: exact, since one sighting of a new landmark carries no information on the
-  rest of the state.
+  ``P_lx = G_v P_vx``. With ``probation_s`` (the initialisation delay) a landmark stays
+  provisional until its second sighting (``min_observations``) and is marginalised out if
+  none comes in time: exact, since one sighting of a new landmark carries no information on
+  the rest of the state.
 
 Diagnostics: the stacked NIS of every scan update and the NIS of each associated sighting
 (``d`` dof), one association decision for every sighting, the landmark count after every
@@ -96,6 +96,7 @@ class EkfSlam:
                 f"{sequence.name}: ekf-slam needs an initial state (the frame-defining prior), the dataset gives none"
             )
         self.config = config
+        self.name = sequence.name
         self.dimension = d = sequence.dimension
         self.input = self._choose_input(config, sequence)
         gyro_model = self.input is not Sensor.ODOMETRY
@@ -105,10 +106,12 @@ class EkfSlam:
         noise = sequence.noise
         self.sequence_noise = noise
         self.gyro_noise = GyroNoise(
-            gyro_density=_first(config.gyro_noise_density, noise.gyro_noise_density, 1e-3),
-            bias_walk=_first(config.gyro_bias_walk, noise.gyro_bias_walk, 1e-5),
-            acceleration_density=per_body_axis(
-                config.acceleration_density, d, "acceleration_density"
+            gyro_density=_first(
+                config.gyro_noise_density_rad_s_sqrt_hz, noise.gyro_noise_density, 1e-3
+            ),
+            bias_walk=_first(config.gyro_bias_walk_rad_s_sqrt_s, noise.gyro_bias_walk, 1e-5),
+            velocity_walk=per_body_axis(
+                config.velocity_walk_m_s_sqrt_s, d, "velocity_walk_m_s_sqrt_s"
             ),
         )
         start = sequence.initial_state
@@ -121,12 +124,16 @@ class EkfSlam:
             velocity=velocity.copy() if gyro_model else None,
             gyro_bias=np.zeros(rotation_size) if self.layout.has_gyro_bias else None,
         )
-        variances = [start.position_sigma_m**2] * d + [start.rotation_sigma_rad**2] * rotation_size
+        position_sigma = _first(config.initial_position_sigma_m, start.position_sigma_m)
+        rotation_sigma = _first(config.initial_rotation_sigma_rad, start.rotation_sigma_rad)
+        variances = [position_sigma**2] * d + [rotation_sigma**2] * rotation_size
         if self.layout.has_velocity:
-            variances += [start.velocity_sigma_m_s**2] * d
+            variances += [
+                _first(config.initial_velocity_sigma_m_s, start.velocity_sigma_m_s) ** 2
+            ] * d
         if self.layout.has_gyro_bias:
             variances += [
-                _first(config.gyro_bias_sigma_rad_s, noise.gyro_bias_sigma_rad_s, 0.01) ** 2
+                _first(config.initial_gyro_bias_sigma_rad_s, noise.gyro_bias_sigma_rad_s, 0.01) ** 2
             ] * rotation_size
         self.covariance = np.diag(variances)
         self.landmarks = np.zeros((0, d))
@@ -173,19 +180,17 @@ class EkfSlam:
     @staticmethod
     def _choose_input(config: EkfSlamConfig, sequence: Sequence) -> Sensor:
         available = sequence.sensors
-        if config.motion_input == "odometry":
-            wanted = [Sensor.ODOMETRY]
-        elif config.motion_input == "gyro":
-            wanted = [Sensor.GYRO, Sensor.IMU]
-        else:
-            wanted = [Sensor.ODOMETRY, Sensor.GYRO, Sensor.IMU]
+        wanted = [Sensor.GYRO, Sensor.IMU]
+        if config.use_odometry:
+            wanted.insert(0, Sensor.ODOMETRY)
         for sensor in wanted:
             if sensor not in available:
                 continue
             return sensor
         raise InputError(
-            f"{sequence.name}: ekf-slam motion_input={config.motion_input} needs one of "
-            f"{', '.join(s.value for s in wanted)} ({sequence.dimension}-D), the dataset has {', '.join(sorted(s.value for s in available))}"
+            f"{sequence.name}: ekf-slam with use_odometry={str(config.use_odometry).lower()} "
+            f"needs one of {', '.join(s.value for s in wanted)} ({sequence.dimension}-D), the "
+            f"dataset has {', '.join(sorted(s.value for s in available))}"
         )
 
     @property
@@ -207,6 +212,7 @@ class EkfSlam:
     def _motion(self, measurement: Measurement) -> None:
         dt = float(measurement.t) - self.motion_t
         if dt > self.config.max_gap_s:
+            motion_gap(self.config, self.name, float(measurement.t), dt)
             self.gaps += 1
             self.recorder.event(measurement.t, "motion_gap", gap_s=dt, input=self.input.value)
         if isinstance(measurement, Odometry) and self.dimension == 2:
@@ -246,8 +252,10 @@ class EkfSlam:
                     f"gyro rate at t={measurement.t:.6f} s must be {self.layout.rotation_size} finite values, got {rate}"
                 )
             interval_rate = rate
-            if self.config.gyro_interval_rate == "average" and self.last_rate is not None:
+            if self.config.interval_rate == "average" and self.last_rate is not None:
                 interval_rate = 0.5 * (self.last_rate + rate)  # trapezoid of instantaneous samples
+            elif self.config.interval_rate == "hold" and self.last_rate is not None:
+                interval_rate = self.last_rate
             self.last_rate = rate
             new, transition, process = predict_gyro_cv(
                 self.vehicle,
@@ -474,16 +482,17 @@ class EkfSlam:
         return len(self.map_ids) - 1
 
     def _prune(self, t: float) -> None:
-        """Marginalise out the provisional landmarks (seen once) older than
-        ``prune_single_sightings_after_s``: the landmark initialisation delay (module
+        """Marginalise out the provisional landmarks (seen fewer than ``min_observations``
+        times) older than ``probation_s``: the landmark initialisation delay (module
         docstring)."""
-        horizon = self.config.prune_single_sightings_after_s
+        horizon = self.config.probation_s
         if horizon is None:
             return
+        needed = self.config.min_observations
         drop = {
             i
             for i in range(len(self.map_ids))
-            if self.sightings[i] == 1 and t - self.created_t[i] > horizon
+            if self.sightings[i] < needed and t - self.created_t[i] > horizon
         }
         if not drop:
             return
@@ -498,7 +507,8 @@ class EkfSlam:
         self.source_ids = [self.source_ids[i] for i in keep]
         self.sightings = [self.sightings[i] for i in keep]
         self.created_t = [self.created_t[i] for i in keep]
-        self.recorder.event(t, "landmarks_pruned", map_ids=removed, reason="seen once")
+        reason = "seen once" if needed == 2 else f"seen fewer than {needed} times"
+        self.recorder.event(t, "landmarks_pruned", map_ids=removed, reason=reason)
 
     # ------------------------------------------------------------------ output
     def map_snapshot(self, t: float | None) -> LandmarkMap:
@@ -582,6 +592,16 @@ class MapPredictor:
         values, columns = jacobian.values, jacobian.columns
         joint = values @ self.ekf.covariance[np.ix_(columns, columns)] @ values.T
         return predicted, 0.5 * (joint + joint.T)
+
+
+def motion_gap(config: EkfSlamConfig, name: str, t: float, dt: float) -> None:
+    """A motion-input gap of ``dt`` [s] longer than ``max_gap_s`` ending at ``t``:
+    ``InputError`` with ``gap_policy=raise``; with ``inflate`` the caller logs and bridges it."""
+    if config.gap_policy == "raise":
+        raise InputError(
+            f"{name}: motion-input gap of {dt:.3f} s before t={t:.6f} s exceeds "
+            f"max_gap_s={config.max_gap_s} (gap_policy=raise)"
+        )
 
 
 def _first(*values: float | None) -> float:

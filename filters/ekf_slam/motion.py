@@ -139,13 +139,14 @@ class GyroNoise:
     Attributes:
         gyro_density: gyro white noise [rad/s/sqrt(Hz)].
         bias_walk: gyro bias random walk [rad/s^2/sqrt(Hz)].
-        acceleration_density: white acceleration driving the velocity [m/s^2/sqrt(Hz)]:
-            one value for every axis, or one per body axis (forward, lateral(, vertical)).
+        velocity_walk: body-velocity random walk [m/s/sqrt(s)], a white acceleration
+            driving the velocity: one value for every axis, or one per body axis (forward,
+            lateral(, vertical)).
     """
 
     gyro_density: float
     bias_walk: float
-    acceleration_density: float | np.ndarray
+    velocity_walk: float | np.ndarray
 
 
 def predict_gyro_cv(
@@ -211,7 +212,7 @@ def predict_gyro_cv(
     if layout.velocity is not None and dt > 0:
         # white acceleration along the body axes (a ground vehicle accelerates along its
         # heading far more than across it), expressed in the world frame at the new attitude
-        body = np.broadcast_to(np.asarray(noise.acceleration_density, dtype=float) ** 2, (d,))
+        body = np.broadcast_to(np.asarray(noise.velocity_walk, dtype=float) ** 2, (d,))
         axes = rot2(float(new_rotation)) if d == 2 else np.asarray(new_rotation)
         q = (axes * body) @ axes.T
         process[layout.position, layout.position] += q * dt**3 / 3.0

@@ -56,7 +56,7 @@ from datasets.sequence import Sequence
 from datasets.stream_clock import StreamClock
 from filters.association.hypotheses import ranked_hypotheses
 from filters.ekf_slam.config import MultiHypothesisEkfSlamConfig
-from filters.ekf_slam.filter import EkfSlam, MapPredictor, planar_odometry_step
+from filters.ekf_slam.filter import EkfSlam, MapPredictor, motion_gap, planar_odometry_step
 from filters.ekf_slam.motion import compose_planar
 
 INTERPRETATIONS_PER_SCAN = 6
@@ -161,6 +161,7 @@ class MultiHypothesisEkfSlam:
         """The leader predicts the sample; the others' composed increment grows by it."""
         dt = float(odometry.t) - self.motion_t
         if dt > self.config.max_gap_s:
+            motion_gap(self.config, self.leader.filter.name, float(odometry.t), dt)
             self.gaps += 1
             self.recorder.event(odometry.t, "motion_gap", gap_s=dt, input=Sensor.ODOMETRY.value)
         step = planar_odometry_step(self.config, self.odometry_model, odometry, dt)

@@ -8,7 +8,19 @@ from typing import Literal
 
 from pydantic import ConfigDict, Field
 
-from datasets.estimator_options import AssociationOptions, RecordingOptions
+from datasets.estimator_options import AssociationOptions, RecordingOptions, for_estimator
+from datasets.model_options import (
+    GapOptions,
+    GyroNoiseOptions,
+    InitialPriorOptions,
+    IntervalRateOptions,
+    LandmarkFieldOfViewOptions,
+    LandmarkProbationOptions,
+    LandmarkWalkOptions,
+    OdometryLateralOptions,
+    OdometryOptions,
+    VelocityWalkOptions,
+)
 
 DEG = math.pi / 180.0
 
@@ -17,45 +29,76 @@ PAPER_BEARING_SIGMA_RAD = 3.75 * DEG
 PAPER_RANGE_SIGMA_M = (0.15, 0.25)
 """Section V: sigma_rho up to ``PAPER_RANGE_SWITCH_M``, and beyond."""
 PAPER_RANGE_SWITCH_M = 10.0
+PAPER_GYRO_BIAS_WALK_RAD_S_SQRT_S = 5.7e-5 * DEG
+"""Section V: sigma_br, the gyro-bias random walk [rad/s/sqrt(s)]."""
 PAPER_LANDMARK_SIGMA_M = 0.05
 """Section V: sigma_p, the landmark disturbance [m/sqrt(s)] of the paper's tuning."""
 
 
-class SensorBasedConfig(AssociationOptions, RecordingOptions):
+class SensorBasedConfig(
+    AssociationOptions,
+    RecordingOptions,
+    VelocityWalkOptions,
+    GyroNoiseOptions,
+    LandmarkWalkOptions,
+    InitialPriorOptions,
+    IntervalRateOptions,
+    GapOptions,
+    LandmarkFieldOfViewOptions,
+    LandmarkProbationOptions,
+    OdometryOptions,
+    OdometryLateralOptions,
+):
     """Options of the sensor-based filter (defaults: the paper's section V where it gives one;
-    association and snapshot options: the shared vocabulary of ``datasets.estimator_options``)."""
+    association, snapshot, motion-noise, prior, gap and landmark options: the shared
+    vocabulary of ``datasets.estimator_options`` and ``datasets.model_options``)."""
 
     model_config = ConfigDict(extra="forbid")
 
-    sigma_velocity_m_s: float | list[float] = Field(
-        0.1,
-        description="sigma_v: velocity random walk [m/s/sqrt(s)] (paper 0.1, every axis); or one value per body "
-        "axis [forward, lateral(, vertical)], e.g. a path-following vehicle whose lateral body velocity is zero",
+    gyro_bias_walk_rad_s_sqrt_s: float | None = for_estimator(
+        GyroNoiseOptions,
+        "gyro_bias_walk_rad_s_sqrt_s",
+        "default: the paper's sigma_br, 5.7e-5 deg/s/sqrt(s) (section V), not the dataset's "
+        "value; None: the dataset's, the paper's where it states none",
+        default=PAPER_GYRO_BIAS_WALK_RAD_S_SQRT_S,
     )
-    sigma_gyro_bias_rad_s: float = Field(
-        5.7e-5 * DEG,
+    gyro_noise_density_rad_s_sqrt_hz: float | None = for_estimator(
+        GyroNoiseOptions,
+        "gyro_noise_density_rad_s_sqrt_hz",
+        "injected into the landmarks through G; 0 where the dataset states none",
+    )
+    landmark_walk_m_sqrt_s: float | None = for_estimator(
+        LandmarkWalkOptions,
+        "landmark_walk_m_sqrt_s",
+        "sigma_p; None: 0 with tuning=stated (the landmarks of every dataset are static, and "
+        "the gyro noise already reaches them through G), the paper's 0.05 with tuning=paper",
+    )
+    direction_walk_per_sqrt_s: float = Field(
+        0.01,
         ge=0,
-        description="sigma_br: gyro-bias random walk [rad/s/sqrt(s)] (paper 5.7e-5 deg/s)",
+        description="random walk of direction features (process noise) [1/sqrt(s)]: a unit "
+        "direction's std grows by this per sqrt(second)",
     )
-    sigma_landmark_m: float | None = Field(
-        None,
-        ge=0,
-        description="sigma_p: landmark disturbance [m/sqrt(s)]; None: 0 with tuning=stated "
-        "(the landmarks of every dataset are static, and the gyro noise already reaches them "
-        "through G), the paper's 0.05 with tuning=paper",
+    initial_velocity_sigma_m_s: float | None = for_estimator(
+        InitialPriorOptions,
+        "initial_velocity_sigma_m_s",
+        "of the body velocity; 2 m/s where the dataset's initial state has no velocity",
     )
-    sigma_direction: float = Field(
-        0.01, ge=0, description="disturbance of direction features [1/sqrt(s)]"
+    initial_gyro_bias_sigma_rad_s: float | None = for_estimator(
+        InitialPriorOptions,
+        "initial_gyro_bias_sigma_rad_s",
+        "0.05 where the dataset states none (a bias of unknown size); 1e-4 when the rate "
+        "comes from odometry, which has no bias",
     )
-    gyro_noise_density: float | None = Field(
-        None,
-        ge=0,
-        description="gyro white noise [rad/s/sqrt(Hz)] injected into the landmarks through G; None: the dataset's stated value (0 if none)",
+    initial_position_sigma_m: float | None = for_estimator(
+        InitialPriorOptions,
+        "initial_position_sigma_m",
+        "of the Earth-frame pose (earth_frame): the robocentric state has no position",
     )
-    initial_velocity_sigma_m_s: float | None = Field(
-        None,
-        gt=0,
-        description="prior std of the body velocity; None: the dataset's (2 m/s when the velocity is unknown)",
+    initial_rotation_sigma_rad: float | None = for_estimator(
+        InitialPriorOptions,
+        "initial_rotation_sigma_rad",
+        "of the Earth-frame pose (earth_frame): the robocentric state has no attitude",
     )
     initial_velocity_error_m_s: list[float] | None = Field(
         None,
@@ -63,11 +106,6 @@ class SensorBasedConfig(AssociationOptions, RecordingOptions):
     )
     initial_gyro_bias_rad_s: list[float] | None = Field(
         None, description="initial bias guess (default zero)"
-    )
-    initial_gyro_bias_sigma_rad_s: float | None = Field(
-        None,
-        gt=0,
-        description="prior bias std; None: the dataset's stated value (0.05 rad/s if none)",
     )
     association_window_s: float = Field(
         20.0,
@@ -80,10 +118,6 @@ class SensorBasedConfig(AssociationOptions, RecordingOptions):
     direction_sigma_rad: float = Field(
         2.0 * DEG, gt=0, description="std of a measured line direction [rad]"
     )
-    rate_interpolation: Literal["average", "hold"] = Field(
-        "average",
-        description="rate over a gyro interval: mean of its two samples, or the earlier sample held",
-    )
     discretization: Literal["exact", "euler"] = Field(
         "exact",
         description="'exact': the model solved over each step with held inputs (F = expm(A Ts)); 'euler': "
@@ -92,29 +126,32 @@ class SensorBasedConfig(AssociationOptions, RecordingOptions):
     max_step_s: float = Field(
         0.05, gt=0, description="longest prediction step; longer gaps are sub-stepped"
     )
-    max_gap_s: float = Field(
-        60.0,
-        gt=0,
-        description="a gap between inputs longer than this is an input error (the model is then meaningless)",
+    max_gap_s: float = for_estimator(
+        GapOptions,
+        "max_gap_s",
+        "60, a gap between any inputs: its model propagates across a gap in max_step_s steps "
+        "and its velocity walk widens the covariance as it goes (the CARMEN intel.clf "
+        "odometry stops for 3.5 s)",
+        default=60.0,
     )
     in_view_range_m: float = Field(
         5.0, gt=0, description="landmarks predicted within this range should be seen [m]"
     )
-    field_of_view_deg: float | None = Field(
-        None,
-        gt=0,
-        le=360,
-        description="landmark sensor's horizontal field of view [deg] (a landmark outside it is not "
-        "missed); None: the dataset's stated one (360 if it states none)",
-    )
     max_missed_in_view: int = Field(
         100, ge=1, description="consecutive in-view misses before deletion"
     )
-    min_observations: int = Field(
-        3, ge=1, description="fewer sightings than this by probation_s: deleted"
+    min_observations: int = for_estimator(
+        LandmarkProbationOptions,
+        "min_observations",
+        "3, with probation_s 3 s: the sensor-based landmark management's deletion of "
+        "intermittent or spurious landmarks since the first sensor-based filter",
+        default=3,
     )
-    probation_s: float = Field(
-        3.0, ge=0, description="age at which min_observations is checked [s]"
+    probation_s: float | None = for_estimator(
+        LandmarkProbationOptions,
+        "probation_s",
+        "3, with min_observations 3",
+        default=3.0,
     )
     max_landmarks: int = Field(200, ge=1, description="cap on landmarks in the state")
     loop_closing: bool = Field(
@@ -147,17 +184,16 @@ class SensorBasedConfig(AssociationOptions, RecordingOptions):
         "order at the measured range and bearing; 2-D only; a conservative tuning for a "
         "Hokuyo UTM-30LX) and its landmark disturbance sigma_p = 0.05 m/sqrt(s)",
     )
-    use_odometry: bool | None = Field(
-        None,
-        description="odometry (where the dataset has it) as a body-velocity measurement: an "
-        "extension beyond the paper, which uses the gyro and landmarks only; None: on when the "
-        "dataset has odometry; false: the paper's gyro-only form",
+    use_odometry: bool = for_estimator(
+        OdometryOptions,
+        "use_odometry",
+        "as a body-velocity measurement, an extension beyond the paper, which uses the gyro "
+        "and landmarks only; false: the paper's gyro-only form",
     )
-    odometry_lateral_sigma_m_s: float = Field(
-        0.05,
-        gt=0,
-        description="lateral velocity std of a velocity odometry sample when the dataset states "
-        "no odometry noise model (a unicycle's odometry says nothing across) [m/s]",
+    odometry_lateral_sigma_m_s: float = for_estimator(
+        OdometryLateralOptions,
+        "odometry_lateral_sigma_m_s",
+        "used where the dataset states no odometry noise model (its lateral term otherwise)",
     )
     earth_frame: bool = Field(
         True,
@@ -177,6 +213,6 @@ def landmark_disturbance(config: SensorBasedConfig) -> float:
     dof and the association at 0.987 precision; with 0 they read 0.94 and 1.0. On UTIAS
     dataset 1 without ids (robots 1-3) the association precision went from 0.93 / 0.98 /
     0.89 to 0.99 / 0.98 / 0.99."""
-    if config.sigma_landmark_m is not None:
-        return float(config.sigma_landmark_m)
+    if config.landmark_walk_m_sqrt_s is not None:
+        return float(config.landmark_walk_m_sqrt_s)
     return PAPER_LANDMARK_SIGMA_M if config.tuning == "paper" else 0.0

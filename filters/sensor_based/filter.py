@@ -25,7 +25,7 @@ Multirate: the paper assumes synchronised gyro and laser; here ``A(t, y)`` holds
 visible feature's last measured value between scans (stale by at most one scan period;
 it enters only through the tiny ``M(y) b`` bias term). Long steps are split into sub-steps
 of at most ``max_step_s``. The rate over a gyro interval is, by default, the mean of the
-two samples that bracket it (``rate_interpolation="average"``): a sampled gyro reads the
+two samples that bracket it (``interval_rate="average"``): a sampled gyro reads the
 instantaneous rate, and holding the earlier sample (the literal forward Euler of eq. (10))
 mis-integrates the heading by ``0.5 omega_dot Ts^2`` per step, which at the 10 Hz of the
 paper and a corner's ``omega_dot ~ 0.1 rad/s^2`` is a bias-sized error of 5e-3 rad/s.
@@ -77,6 +77,7 @@ from filters.association import AssociationPolicy, Decision, Reason, ScanAssocia
 from filters.ekf_slam.boundary import pose_covariance_to_interface
 from filters.sensor_based.config import (
     PAPER_BEARING_SIGMA_RAD,
+    PAPER_GYRO_BIAS_WALK_RAD_S_SQRT_S,
     PAPER_RANGE_SIGMA_M,
     PAPER_RANGE_SWITCH_M,
     SensorBasedConfig,
@@ -141,19 +142,25 @@ class SensorBasedSlam:
         self.name = sequence.name
         self.dimension = d = sequence.dimension
         self.rate_dim = r = rate_dimension(d)
-        density = config.gyro_noise_density
+        density = config.gyro_noise_density_rad_s_sqrt_hz
         if density is None:
             density = sequence.noise.gyro_noise_density or 0.0
         if config.tuning == "paper" and d != 2:
             raise InputError(
                 f"{sequence.name}: tuning=paper is the paper's planar laser model (2-D datasets)"
             )
-        velocity_walk = per_body_axis(config.sigma_velocity_m_s, d, "sigma_velocity_m_s")
+        velocity_walk = per_body_axis(
+            config.velocity_walk_m_s_sqrt_s, d, "velocity_walk_m_s_sqrt_s"
+        )
+        bias_walk = config.gyro_bias_walk_rad_s_sqrt_s
+        if bias_walk is None:
+            stated = sequence.noise.gyro_bias_walk
+            bias_walk = PAPER_GYRO_BIAS_WALK_RAD_S_SQRT_S if stated is None else stated
         self.noise = ProcessNoise(
             velocity_m_s=velocity_walk,
-            gyro_bias_rad_s=config.sigma_gyro_bias_rad_s,
+            gyro_bias_rad_s=bias_walk,
             landmark_m=landmark_disturbance(config),
-            direction=config.sigma_direction,
+            direction=config.direction_walk_per_sqrt_s,
             gyro_noise_density=float(density),
         )
         start = sequence.initial_state
@@ -186,12 +193,12 @@ class SensorBasedSlam:
         self.manager = LandmarkManager(
             ManagementPolicy(
                 in_view_range_m=config.in_view_range_m,
-                field_of_view_deg=config.field_of_view_deg
+                field_of_view_deg=config.landmark_field_of_view_deg
                 or sequence.noise.landmark_field_of_view_deg
                 or 360.0,
                 max_missed_in_view=config.max_missed_in_view,
                 min_observations=config.min_observations,
-                probation_s=config.probation_s,
+                probation_s=math.inf if config.probation_s is None else config.probation_s,
                 max_landmarks=config.max_landmarks,
             )
         )
@@ -204,9 +211,9 @@ class SensorBasedSlam:
                 rot2(float(start.rotation)) if d == 2 else matrix_from_quat_wxyz(start.rotation)
             )
             start_position = np.asarray(start.position, dtype=float)
-            start_covariance = np.diag(
-                [start.position_sigma_m**2] * d + [start.rotation_sigma_rad**2] * r
-            )
+            position_sigma = config.initial_position_sigma_m or start.position_sigma_m
+            rotation_sigma = config.initial_rotation_sigma_rad or start.rotation_sigma_rad
+            start_covariance = np.diag([position_sigma**2] * d + [rotation_sigma**2] * r)
         self.earth = (
             EarthFrameTracker(d, start_rotation, start_position, covariance=start_covariance)
             if config.earth_frame
@@ -239,11 +246,7 @@ class SensorBasedSlam:
             "nan_odometry": 0,
         }
         # odometry as a body-velocity measurement (an extension beyond the paper)
-        self.use_odometry = (
-            Sensor.ODOMETRY in sequence.sensors
-            if config.use_odometry is None
-            else bool(config.use_odometry)
-        )
+        self.use_odometry = Sensor.ODOMETRY in sequence.sensors and config.use_odometry
         self.odometry_model = sequence.noise.odometry
         self._odometry_t: float | None = None
         self._rate_odometry_t: float | None = None
@@ -430,8 +433,10 @@ class SensorBasedSlam:
                 )
             self._propagate_to(t)
             return
-        if self.config.rate_interpolation == "average" and self.rate is not None:
+        if self.config.interval_rate == "average" and self.rate is not None:
             self._propagate_to(t, 0.5 * (self.rate + rate))
+        elif self.config.interval_rate == "latest":
+            self._propagate_to(t, rate)
         else:
             self._propagate_to(t)
         self.rate = rate
