@@ -153,6 +153,14 @@ DATASETS: tuple[DatasetEntry, ...] = (
         examples=("scans:velodyne/",),
         describe_target="datasets.scan_folder:describe",
     ),
+    DatasetEntry(
+        "carmen",
+        "datasets.carmen:load",
+        "CARMEN .clf[.bz2] 2-D laser log (FLASER/RLASER/ROBOTLASER1, ODOM): wheel odometry and split-and-merge corner landmarks without ids, no truth",
+        argument="FILE",
+        examples=("carmen:../shared/data/carmen-logs/intel.clf.bz2",),
+        describe_target="datasets.carmen:describe",
+    ),
 )
 
 

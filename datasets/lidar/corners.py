@@ -16,7 +16,9 @@ are compiled: ``corner_kernels``):
    sensor-based paper's ref. [35]): a segment whose farthest point lies more than
    ``split_threshold_m`` from its end-point chord is split there (iterative end-point fit);
    then adjacent segments whose joint total-least-squares fit has an RMS residual below
-   ``merge_rms_m`` are merged.
+   ``merge_rms_m`` are merged. With ``refine_boundaries`` (the 2-D laser front end,
+   ``datasets.laser2d``), each boundary between adjacent segments of a cluster is then moved
+   to the break where the two lines fit best (``refine_boundaries``).
 5. **Lines**: total least squares per segment (``end_trim_points`` trimmed at each end, where
    the two faces of a corner mix). Guerreiro et al. (Sec. VI) fit lines with a reduced-space
    Hough transform instead; TLS is the closed-form choice here, with a first-order covariance.
@@ -24,7 +26,8 @@ are compiled: ``corner_kernels``):
    the attitude first (the paper projects the profile with roll and pitch).
 6. **Corners**: consecutive segments of one cluster whose directions differ by at least
    ``min_corner_angle_deg`` (and at most 180 minus it) and whose line intersection lies
-   within ``max_corner_gap_m`` of both segments' facing ends. The corner is the
+   within ``max_corner_gap_m`` of both segments' facing ends (with ``refine_boundaries``,
+   where adjacent segments share no point: of the bridge between those ends). The corner is the
    intersection; its covariance is propagated from the range/bearing noise of the points
    (``corner_covariance``), plus an isotropic ``model_sigma_m`` floor for errors the point
    model leaves out. The floor was set where detections on the synthetic corridor bag
@@ -80,6 +83,17 @@ class CornerConfig(BaseModel):
     min_segment_length_m: float = Field(0.25, gt=0, description="shortest line segment [m]")
     end_trim_points: int = Field(
         1, ge=0, description="points left out of the line fit at each segment end"
+    )
+    refine_boundaries: bool = Field(
+        False,
+        description="move each boundary between adjacent segments of a cluster to where the "
+        "two lines fit best (least total squared distance; refine_boundaries below)",
+    )
+    min_fit_points: int | None = Field(
+        None,
+        ge=2,
+        description="fewest points a trimmed line fit keeps; a segment with fewer after the "
+        "trim is fitted untrimmed (None: min_segment_points)",
     )
     min_corner_angle_deg: float = Field(
         35.0, gt=0, lt=90, description="least angle between the two lines of a corner [deg]"
@@ -322,6 +336,74 @@ def _merge_segments(
     )
 
 
+def refine_boundaries(
+    prefix: _PrefixMoments,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    cluster: np.ndarray,
+    least: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each boundary between adjacent segments of one cluster moved to the break that fits
+    the two lines best: over the points of both, the split ``[start, k] | [k + 1, end]``
+    with the least sum of the two total-least-squares residual sums of squares (each
+    ``n`` times the smaller eigenvalue of its scatter matrix, from the prefix moments), each
+    side keeping at least ``least`` points. Boundaries are refined left to right.
+
+    Why: the iterative end-point fit splits at the point farthest from a chord, which noise
+    can put a few points away from the true break when one of the two lines has few points
+    (a door jamb seen obliquely); those points of the neighbouring wall then sit in the
+    short line's fit, beyond what the end trim removes, and bias its corner by centimetres
+    (``tests/test_laser2d_corners.py``). After refinement adjacent segments share no point.
+    """
+    starts, ends = np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64)
+    left_index = np.flatnonzero(
+        (cluster[starts[:-1]] == cluster[ends[1:]]) & (starts[1:] - ends[:-1] <= 1)
+    )
+    low, high = starts[left_index], ends[left_index + 1]
+    counts = np.maximum(high - low + 3 - 2 * least, 0)  # breaks k with both sides >= least
+    left_index, low, high, counts = (
+        left_index[counts > 0],
+        low[counts > 0],
+        high[counts > 0],
+        counts[counts > 0],
+    )
+    if len(left_index) == 0:
+        return starts, ends
+    # every candidate break of every boundary at once: left [low, k], right [k + 1, high]
+    owner = np.repeat(np.arange(len(left_index)), counts)
+    offsets = np.cumsum(counts) - counts
+    breaks = low[owner] + least - 1 + (np.arange(len(owner)) - offsets[owner])
+    cost = _residual_sum(_Moments(prefix.totals(low[owner], breaks))) + _residual_sum(
+        _Moments(prefix.totals(breaks + 1, high[owner]))
+    )
+    order = np.lexsort((cost, owner))
+    best = breaks[order[np.concatenate([[0], np.cumsum(counts)[:-1]])]]
+    for i, k in zip(left_index.tolist(), best.tolist()):
+        # a break refined just before may have shortened this boundary's left segment
+        k = min(max(k, int(starts[i]) + least - 1), int(ends[i + 1]) - least)
+        if k >= int(starts[i]) + least - 1:
+            ends[i], starts[i + 1] = k, k + 1
+    return starts, ends
+
+
+def _bridge_distance(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Distance (k,) [m] of each of ``points`` (k, 2) from the segment joining ``starts``
+    (k, 2) to ``ends`` (k, 2)."""
+    span = ends - starts
+    length2 = np.maximum(np.sum(span * span, axis=1), 1e-24)
+    along = np.clip(np.sum((points - starts) * span, axis=1) / length2, 0.0, 1.0)
+    return _norms(points - (starts + along[:, None] * span))
+
+
+def _residual_sum(moments: _Moments) -> np.ndarray:
+    """Total-least-squares residual sum of squares of each range (m,) [m^2]: ``n`` times the
+    smaller eigenvalue of the central second-moment matrix."""
+    _, cxx, cxy, cyy = moments._centred()
+    half_trace = 0.5 * (cxx + cyy)
+    spread = np.sqrt(np.maximum(0.25 * (cxx - cyy) ** 2 + cxy * cxy, 0.0))
+    return moments.sums[:, 0] * np.maximum(half_trace - spread, 0.0)
+
+
 def point_perpendicular_variance(
     xy: np.ndarray, normal: np.ndarray, config: CornerConfig
 ) -> np.ndarray:
@@ -429,10 +511,15 @@ def scan_corners(xy: np.ndarray, bins: np.ndarray, config: CornerConfig) -> Corn
     starts, ends = split_segments(xy, starts[big], ends[big], config.split_threshold_m)
     prefix = _PrefixMoments(xy)
     starts, ends = _merge_segments(prefix, starts, ends, cluster, config.merge_rms_m)
+    if config.refine_boundaries:
+        starts, ends = refine_boundaries(prefix, starts, ends, cluster, config.end_trim_points + 2)
 
     trim = config.end_trim_points
     fit_starts, fit_ends = starts + trim, ends - trim
-    usable = fit_ends - fit_starts + 1 >= config.min_segment_points
+    # a split point ends one segment and starts the next: untrimmed, each fit takes a point
+    # of its neighbour (a 2-D scan's short door jambs set min_fit_points below the default)
+    least = config.min_segment_points if config.min_fit_points is None else config.min_fit_points
+    usable = fit_ends - fit_starts + 1 >= least
     fit_starts, fit_ends = np.where(usable, fit_starts, starts), np.where(usable, fit_ends, ends)
     centroid, direction = prefix.of(fit_starts, fit_ends).line()
     var_a, var_b, cov_ab = line_parameter_covariance(
@@ -468,9 +555,15 @@ def scan_corners(xy: np.ndarray, bins: np.ndarray, config: CornerConfig) -> Corn
     normals = normal[pairs]  # (k, 2, 2), rows n1 and n2
     rhs = np.sum(normals * centroid[pairs], axis=2)
     corner = np.linalg.solve(normals, rhs[..., None])[..., 0]
-    gap_left = _norms(corner - segment_ends[pairs[:, 0], 1])
-    gap_right = _norms(corner - segment_ends[pairs[:, 1], 0])
-    near = (gap_left <= config.max_corner_gap_m) & (gap_right <= config.max_corner_gap_m)
+    facing_left, facing_right = segment_ends[pairs[:, 0], 1], segment_ends[pairs[:, 1], 0]
+    if config.refine_boundaries:
+        # refined segments share no point: the corner lies between their facing ends, which
+        # a grazing wall can leave a beam spacing apart; measure it from that bridge
+        near = _bridge_distance(corner, facing_left, facing_right) <= config.max_corner_gap_m
+    else:
+        gap_left = _norms(corner - facing_left)
+        gap_right = _norms(corner - facing_right)
+        near = (gap_left <= config.max_corner_gap_m) & (gap_right <= config.max_corner_gap_m)
     pairs, normals, corner = pairs[near], normals[near], corner[near]
     if len(pairs) == 0:
         return _no_corners(config)

@@ -24,6 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError, did_you_mean
+from datasets.laser2d.simulation import Laser2dScenarioOptions, laser2d_scenario
 from datasets.options import describe_model, parse_options
 from datasets.rotations import wrap_angle
 from datasets.sequence import NoiseSpec, Sequence
@@ -773,6 +774,11 @@ _SCENARIOS: dict[str, tuple[type[BaseModel], Callable[[int, BaseModel], Sequence
         "3-D level circle, r 10 m at 2 m/s, IMU 100 Hz + landmarks, 60 s",
     ),
     "static": (StaticOptions, static, "3-D vehicle at rest (tilted), IMU 100 Hz + landmarks, 60 s"),
+    "laser2d": (
+        Laser2dScenarioOptions,
+        laser2d_scenario,
+        "2-D laser scans (181 beams, 5 Hz) ray-cast in the guerreiro-loop building, odometry, corners by the CARMEN front end (datasets.laser2d), no ids",
+    ),
 }
 
 SCENARIO_NAMES: tuple[str, ...] = tuple(_SCENARIOS)
