@@ -18,7 +18,7 @@ from datasets.bags.pointcloud2 import encode_pointcloud2
 from datasets.bags.reader import ReadReport, ReadSettings, read_stream
 from datasets.bags.source import load_bag
 from datasets.errors import InputError
-from datasets.measurements import ImuSample, PointCloud
+from datasets.measurements import ImuSample, PointCloud, Sensor
 from datasets.synthetic_lidar import write_lidar_bag
 from workbench.cli import main
 
@@ -114,15 +114,19 @@ def test_truncated_bag_names_the_file(tmp_path, kind):
 
 
 def test_bag_without_pointcloud2(tmp_path):
+    # a bag without lidar runs what its sensors allow (#37): an IMU alone is dead reckoning
     path = write_ros2(
         tmp_path / "imu_only",
         [("/imu", "sensor_msgs/msg/Imu", 1.0 + 0.01 * k, _imu(1.0 + 0.01 * k)) for k in range(5)],
     )
+    sequence = load_bag(str(path), 0, {})
+    assert sequence.sensors == {Sensor.IMU} and len(list(sequence.measurements())) == 5
     with pytest.raises(
         InputError,
-        match=r"imu_only: no sensor_msgs/msg/PointCloud2 topic for the lidar; topics: /imu \[sensor_msgs/msg/Imu\]",
+        match=r"imu_only: no sensor an estimator can use: no PointCloud2 topic, no Imu topic "
+        r"\(imu=false\) and no wheel odometry .*topics: /imu \[sensor_msgs/msg/Imu\]",
     ):
-        load_bag(str(path), 0, {})
+        load_bag(str(path), 0, {"imu": "false"})
 
 
 def test_cloud_without_xyz_names_file_topic_time(tmp_path):
@@ -318,8 +322,10 @@ def test_a_pose_topic_is_truth_only_when_named(tmp_path: Path, capsys) -> None:
     assert main(argv) == 0
     captured = capsys.readouterr()
     assert "warning: bag:" in captured.err and "/odom not taken as truth" in captured.err
-    (row,) = csv.DictReader((out / "table.csv").open())
-    assert row["estimator"] == "dead-reckoning" and row["ate_rmse_m"] == ""
+    rows = {row["estimator"]: row for row in csv.DictReader((out / "table.csv").open())}
+    # the estimator asked for, and the lidar front end's own row (issue 37's reference)
+    assert sorted(rows) == ["dead-reckoning", "front end (kiss-icp)"], sorted(rows)
+    assert rows["dead-reckoning"]["ate_rmse_m"] == ""
 
 
 def test_non_finite_truth_or_imu_is_an_error_not_a_quiet_run(tmp_path: Path, capsys) -> None:

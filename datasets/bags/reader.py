@@ -51,8 +51,11 @@ from pathlib import Path
 import numpy as np
 
 from datasets.bags.gps import geodetic_to_enu
+from datasets.bags.laserscan import MalformedScan, decode_laserscan
 from datasets.bags.pointcloud2 import ABSOLUTE_TIME_S, MalformedCloud, decode_pointcloud2
+from datasets.bags.wheel_odometry import PoseSample, pose_sample
 from datasets.errors import InputError, did_you_mean
+from datasets.laser2d.scan import PlanarScan
 from datasets.lidar.kiss_icp_odometry import pose_time
 from datasets.lidar.sweep_times import point_times_for, sweep_period
 from datasets.measurements import GpsFix, ImuSample, Measurement, PointCloud
@@ -60,11 +63,16 @@ from datasets.text_files import check_regular_file
 from datasets.trajectory_io import MAX_POSITION_M
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
+LASERSCAN = "sensor_msgs/msg/LaserScan"
 IMU = "sensor_msgs/msg/Imu"
 NAVSATFIX = "sensor_msgs/msg/NavSatFix"
 ODOMETRY = "nav_msgs/msg/Odometry"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
-GROUND_TRUTH_TYPES = (ODOMETRY, POSE_STAMPED)
+POSE_WITH_COVARIANCE_STAMPED = "geometry_msgs/msg/PoseWithCovarianceStamped"
+GROUND_TRUTH_TYPES = (ODOMETRY, POSE_STAMPED, POSE_WITH_COVARIANCE_STAMPED)
+POSE_TYPES = (ODOMETRY, POSE_STAMPED, POSE_WITH_COVARIANCE_STAMPED)
+"""Message types with a pose: a wheel-odometry input (``odometry_topic``, differenced:
+``datasets.bags.wheel_odometry``) or, when named, the ground truth."""
 
 STAMP_JUMP_S = 10.0
 """How far [s] a header stamp may move against the record (log) time from where its
@@ -242,13 +250,16 @@ def common_time_base(path: Path, spans: dict[str, tuple[float, float]]) -> TimeB
 @dataclass(frozen=True)
 class BagTopics:
     """The topics a bag source reads (None: absent), and the pose topics it does not take as
-    truth because none was named (``unnamed_truth``: listed in the run's warnings)."""
+    truth because none was named (``unnamed_truth``: listed in the run's warnings). Which
+    pose topic is the wheel odometry is decided from the messages
+    (``datasets.bags.topic_roles``), not here."""
 
-    lidar: str
+    lidar: str | None
     imu: str | None = None
     ground_truth: str | None = None
     gps: str | None = None
     unnamed_truth: tuple[str, ...] = ()
+    laser: str | None = None
 
 
 def _default_typestore(path: Path):
@@ -338,11 +349,14 @@ def discover_topics(
     imu: str | None = None,
     ground_truth: str | None = None,
     gps: str | None = None,
+    laser: str | None = None,
 ) -> BagTopics:
     """Sensor topics by type when not given (``InputError`` with the candidates when
-    ambiguous). Ground truth only when named: an Odometry or PoseStamped topic may be wheel
-    odometry or another estimator's output (``/odometry/filtered``), and scoring against it
-    would print numbers that look like accuracy and are not."""
+    ambiguous). Every sensor is optional here (a bag of IMU, wheel odometry and GPS has no
+    lidar); whether what is found is enough for an estimator is the source's and the
+    runner's to say. Ground truth only when named: an Odometry or PoseStamped topic may be
+    wheel odometry or another estimator's output (``/odometry/filtered``), and scoring
+    against it would print numbers that look like accuracy and are not."""
     truth = None
     if ground_truth:
         truth = _choose(
@@ -358,11 +372,12 @@ def discover_topics(
         sorted(topic for topic, msgtype in types.items() if msgtype in GROUND_TRUTH_TYPES)
     )
     return BagTopics(
-        lidar=_choose(path, types, (POINTCLOUD2,), lidar, "lidar", "lidar_topic", True),
+        lidar=_choose(path, types, (POINTCLOUD2,), lidar, "lidar", "lidar_topic", False),
         imu=_choose(path, types, (IMU,), imu, "IMU", "imu_topic", False),
         ground_truth=truth,
         gps=_choose(path, types, (NAVSATFIX,), gps, "GPS", "gps_topic", False),
         unnamed_truth=() if truth else unnamed,
+        laser=_choose(path, types, (LASERSCAN,), laser, "2-D laser", "laser_topic", False),
     )
 
 
@@ -446,8 +461,11 @@ def _vector(v) -> np.ndarray:
 
 
 def pose_of(message, msgtype: str) -> tuple[np.ndarray, np.ndarray]:
-    """Position (3,) and quaternion (w, x, y, z) (4,) of an Odometry or PoseStamped."""
-    pose = message.pose.pose if msgtype == ODOMETRY else message.pose
+    """Position (3,) and quaternion (w, x, y, z) (4,) of an Odometry, PoseStamped or
+    PoseWithCovarianceStamped."""
+    pose = (
+        message.pose.pose if msgtype in (ODOMETRY, POSE_WITH_COVARIANCE_STAMPED) else message.pose
+    )
     q = pose.orientation
     return _vector(pose.position), np.array([q.w, q.x, q.y, q.z], dtype=float)
 
@@ -469,6 +487,7 @@ class ReadSettings:
     max_missing_fraction: float = 0.01
     max_skipped_fraction: float = 0.05
     time_base: TimeBase | None = None  # messages stamped outside it are trimmed and counted
+    laser_mounting: np.ndarray | None = None  # (3,) 2-D laser in the body frame: x, y, theta
 
 
 def convert(
@@ -479,11 +498,34 @@ def convert(
     message,
     settings: ReadSettings,
     report: ReadReport,
-) -> Measurement | None:
+) -> Measurement | PlanarScan | PoseSample | None:
     """One message -> measurement, or None (skipped and counted) for an empty or malformed
-    cloud, an implausible IMU sample or GPS fix, GPS without fix (module docstring).
-    ``InputError`` for a cloud without x/y/z or with coordinates that are not floats."""
+    cloud or laser scan, an implausible IMU sample or GPS fix, GPS without fix, a
+    non-finite odometry pose (module docstring). A ``LaserScan`` becomes a ``PlanarScan``
+    (``datasets.bags.laserscan``) and a pose message of the odometry topic a ``PoseSample``
+    (``datasets.bags.wheel_odometry``): the bag source turns them into corners and
+    increments. ``InputError`` for a cloud without x/y/z or with coordinates that are not
+    floats."""
     where = f"{path}, topic {topic}, t={stamp:.9f}"
+    if msgtype == LASERSCAN:
+        try:
+            scan, dropped = decode_laserscan(message, stamp, settings.laser_mounting)
+        except MalformedScan as error:
+            report.skip(topic, "malformed LaserScan", stamp, error.problem)
+            return None
+        if dropped:
+            report.repair(topic, "beam times dropped", stamp, dropped)
+        return scan
+    if msgtype in POSE_TYPES:
+        sample = pose_sample(message, msgtype, stamp)
+        with np.errstate(over="ignore"):
+            norm = float(np.linalg.norm(sample.quaternion))
+        if not (np.all(np.isfinite(sample.position)) and np.isfinite(norm)) or (
+            abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE
+        ):
+            report.skip(topic, "non-finite pose or not a unit quaternion", stamp)
+            return None
+        return sample
     if msgtype == POINTCLOUD2:
         try:
             cloud = decode_pointcloud2(

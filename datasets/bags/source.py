@@ -40,7 +40,9 @@ from datasets.bags.pointcloud2 import MalformedCloud, decode_pointcloud2
 from datasets.bags.reader import (
     MAX_ACCEL_M_S2,
     MAX_GYRO_RAD_S,
+    ODOMETRY,
     POINTCLOUD2,
+    BagTopics,
     ReadReport,
     ReadSettings,
     check_skips,
@@ -57,7 +59,10 @@ from datasets.bags.reader import (
     topic_spans,
     topic_types,
 )
+from datasets.bags.topic_roles import OdometryRole, choose_odometry, named_not_wheel
+from datasets.bags.wheel_odometry import PoseSample, WheelIncrements, noise_policy
 from datasets.errors import InputError
+from datasets.laser2d.frontend import Laser2dFrontEndSettings
 from datasets.lidar.corner_truth import (
     CornerTruth,
     interpolate_poses,
@@ -149,20 +154,61 @@ class BagOptions(LidarSourceOptions):
     reorder_window_s: float = Field(
         1.0, ge=0, description="how far stamps may lag bag order and still be reordered [s]"
     )
+    odometry_topic: str | None = Field(
+        None,
+        description="wheel-odometry topic (nav_msgs/Odometry, or a PoseStamped / "
+        "PoseWithCovarianceStamped topic, differenced); default: decided from the bag's "
+        "Odometry topics by their frames, rates, covariances, jumps and names (printed); used "
+        "as input where no lidar odometry is, never as truth",
+    )
+    wheel_odometry: bool = Field(
+        True, description="use wheel odometry (odometry_topic or the one decided) as an input"
+    )
+    odometry_noise: str = Field(
+        "auto",
+        description="wheel-odometry increment covariance: 'auto' (the messages' twist "
+        "covariance on the axes where it is meaningful, else the stated default model), "
+        "'twist', 'model' (datasets.bags.wheel_odometry.WHEEL_ODOMETRY_NOISE) or a YAML model "
+        "file from `workbench calibrate-noise`",
+    )
+    odometry_max_rate_hz: float | None = Field(
+        10.0,
+        gt=0,
+        description="wheel-odometry increments are composed to at most this rate [Hz] (the "
+        "smoothers open a keyframe at each); null: one per message",
+    )
+    laser_topic: str | None = Field(
+        None,
+        description="sensor_msgs/LaserScan topic (default: the only one, if any); 'none': "
+        "do not use a 2-D laser",
+    )
+    laser_to_body: tuple[float, float, float] | None = Field(
+        None,
+        description="2-D laser pose in the body frame: [x, y, theta] [m, m, rad] (default: "
+        "the body frame; the bag's /tf_static is not read)",
+    )
+    laser: Laser2dFrontEndSettings = Field(
+        default_factory=Laser2dFrontEndSettings,
+        description="2-D laser front end (LaserScan bags), as laser.KEY=VALUE and "
+        "laser.corner.KEY=VALUE (datasets.laser2d)",
+    )
 
 
 def nest_dotted(options: dict[str, str]) -> dict[str, object]:
-    """``{"kiss.voxel_size_m": "0.5"}`` -> ``{"kiss": {"voxel_size_m": 0.5}}`` (YAML values)."""
+    """``{"kiss.voxel_size_m": "0.5"}`` -> ``{"kiss": {"voxel_size_m": 0.5}}`` (YAML values),
+    at any depth (``laser.corner.min_range_m``)."""
     nested: dict[str, object] = {}
     for key, value in options.items():
-        head, dot, tail = key.partition(".")
-        if dot:
-            nested.setdefault(head, {})
-            if not isinstance(nested[head], dict):
-                raise InputError(f"--data {key}: '{head}' is not a group of options")
-            nested[head][tail] = yaml_value(value)  # type: ignore[index]
-        else:
-            nested[key] = yaml_value(value)
+        *heads, last = key.split(".")
+        group = nested
+        for depth, head in enumerate(heads):
+            group.setdefault(head, {})
+            if not isinstance(group[head], dict):
+                raise InputError(
+                    f"--data {key}: '{'.'.join(heads[: depth + 1])}' is not a group of options"
+                )
+            group = group[head]  # type: ignore[assignment]
+        group[last] = yaml_value(value)
     return nested
 
 
@@ -291,7 +337,13 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             settings.imu_topic,
             settings.ground_truth_topic,
             settings.gps_topic,
+            None if settings.laser_topic == "none" else settings.laser_topic,
         )
+        if topics.lidar is None:  # IMU, wheel odometry, GPS, 2-D laser (sensor_source)
+            from datasets.bags.sensor_source import sensor_sequence
+
+            return sensor_sequence(argument, path, settings, topics)
+        decisions, wheel = _other_inputs(reader, path, types, topics, settings)
         imu_topic = topics.imu if settings.imu else None
         gps_topic = topics.gps if settings.gps else None
         origin = first_gps_origin(reader, path, gps_topic) if gps_topic else None
@@ -367,10 +419,12 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     front_end = LidarFrontEnd(
         settings.front_end_settings().model_copy(
             update={"imu_deskew": settings.imu_deskew and imu_topic is not None}
-        )
+        ),
+        # with an IMU the estimators may move by it instead of the front end's increments
+        sole_motion_input=imu_topic is None,
     )
     source = LidarSource(front_end)
-    topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic) if topic]
+    topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic, wheel.topic) if topic]
 
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
     reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
@@ -391,8 +445,11 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     def stream():
         report = ReadReport()
         source.report = report
+        measurements = (m for _, m in read_stream(path, topic_list, read_settings, report))
+        if wheel.topic is not None:  # wheel odometry where the front end gives none
+            measurements = wheel_increments(measurements, wheel, settings, time_base)
         yield from with_front_end(
-            (m for _, m in read_stream(path, topic_list, read_settings, report)),
+            measurements,
             front_end,
             settings.point_clouds,
             settings.max_frames,
@@ -405,7 +462,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     sensors = {Sensor.POINT_CLOUD} if settings.point_clouds else set()
     sensors |= {Sensor.IMU} if imu_topic else set()
     sensors |= {Sensor.GPS} if gps_topic else set()
-    sensors |= {Sensor.ODOMETRY} if settings.odometry else set()
+    sensors |= {Sensor.ODOMETRY} if settings.odometry or wheel.topic else set()
     sensors |= {Sensor.LANDMARKS} if settings.corners else set()
     noise = NoiseSpec(
         gyro_noise_density=settings.gyro_noise_density
@@ -435,6 +492,8 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             time_base.start_s if time_base else start_s,
             ground_truth.pose if ground_truth else None,
         ),
+        # the front end's trajectory, increment covariances and counters, filled by the pass
+        front_end=front_end.report if settings.odometry else None,
         metadata={
             "source": str(path),
             "reference_source": f"topic {topics.ground_truth}" if topics.ground_truth else None,
@@ -444,6 +503,8 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
                 "imu": imu_topic,
                 "ground_truth": topics.ground_truth,
                 "gps": gps_topic,
+                "odometry": wheel.topic,
+                "laser": None,
             },
             # the common interval every stream is trimmed to (module docstring)
             "time_base": time_base.as_dict() if time_base else None,
@@ -454,10 +515,77 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             "options": settings.model_dump(mode="json"),
             # what the loader decided and why, to print as notes (a clear decision) beside
             # the warnings (datasets.lidar.sweep_timing)
-            "decisions": [timing.text] if timing.clear else [],
+            "decisions": ([timing.text] if timing.clear else []) + decisions,
             "sweep_timing": timing.as_dict(),
         },
     ), source
+
+
+def _other_inputs(
+    reader, path: Path, types: dict[str, str], topics: BagTopics, settings: BagOptions
+) -> tuple[list[str], OdometryRole]:
+    """Beside a lidar: the decision lines on the bag's 2-D laser and pose topics, and the
+    wheel odometry to use (only where the front end gives no odometry, ``odometry=false``:
+    one odometry input per sequence)."""
+    decisions = []
+    if topics.laser:
+        decisions.append(
+            f"2-D laser {topics.laser} not used: the lidar {topics.lidar} is the bag's range sensor"
+        )
+    if settings.odometry or not settings.wheel_odometry:
+        listed = [
+            topic
+            for topic, msgtype in sorted(types.items())
+            # a topic named as truth or an estimate would never be the wheel odometry
+            if msgtype == ODOMETRY and topic != topics.ground_truth and not named_not_wheel(topic)
+        ]
+        if listed:
+            why = (
+                "the lidar front end's (KISS-ICP) is the odometry input"
+                if settings.odometry
+                else "wheel_odometry=false"
+            )
+            decisions.append(
+                f"odometry: {', '.join(listed)} not used as input ({why}; --data "
+                "odometry=false uses wheel odometry instead)"
+            )
+        return decisions, OdometryRole(None, None, "")
+    role = choose_odometry(reader, path, types, settings.odometry_topic, topics.ground_truth)
+    if role.text:
+        decisions.append(role.text)
+    if role.topic is not None:
+        _, text = noise_policy(
+            settings.odometry_noise,
+            role.evidence.first,
+            role.evidence.message_interval_s,
+            role.topic,
+        )
+        decisions.append(f"odometry noise: {text}")
+    return decisions, role
+
+
+def wheel_increments(measurements, wheel: OdometryRole, settings: BagOptions, time_base):
+    """``measurements`` with the wheel odometry's ``PoseSample`` turned into ``Odometry``
+    increments (``datasets.bags.wheel_odometry``)."""
+    noise, _ = noise_policy(
+        settings.odometry_noise,
+        wheel.evidence.first,
+        wheel.evidence.message_interval_s,
+        wheel.topic,
+    )
+    increments = WheelIncrements(
+        noise,
+        from_twist=wheel.from_twist,
+        max_rate_hz=settings.odometry_max_rate_hz,
+        start_s=time_base.start_s if time_base else None,
+    )
+    for measurement in measurements:
+        if isinstance(measurement, PoseSample):
+            odometry = increments.add(measurement)
+            if odometry is not None:
+                yield odometry
+        else:
+            yield measurement
 
 
 def bag_sweep_timing(

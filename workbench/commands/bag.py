@@ -192,6 +192,24 @@ def _status(text: str, limit: int = 160) -> str:
     return flat if len(flat) <= limit else flat[: limit - 3] + "..."
 
 
+def not_applicable(requested: list[str] | None, sequence) -> dict[str, str]:
+    """Every registered estimator the sequence's sensors or dimension do not allow, with the
+    reason (``workbench.runner.check_compatible``, as ``bench`` says it), when none were
+    requested by name (a requested one that cannot run fails in its own row)."""
+    from workbench.registry import ESTIMATORS
+    from workbench.runner import check_compatible
+
+    if requested:
+        return {}
+    reasons = {}
+    for entry in ESTIMATORS:
+        try:
+            check_compatible(entry.name, entry.load(), sequence)
+        except InputError as error:
+            reasons[entry.name] = str(error)
+    return reasons
+
+
 def choose_estimators(requested: list[str] | None, sequence) -> list[str]:
     """The requested names (checked), or every registered estimator the sequence allows."""
     from workbench.registry import ESTIMATORS, estimator_entry
@@ -258,10 +276,7 @@ def _bag_command(
     from datasets.bags.reader import open_bag
     from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
     from datasets.trajectory_io import write_atomic, write_tum
-    from workbench.reporting import write_report
-    from workbench.results.runs import load_runs
-    from workbench.run_folder import dump_json, write_failed_run, write_run_folder
-    from workbench.runner import RunRequest, execute
+    from workbench.run_folder import dump_json
 
     options = parse_assignments(data, "--data")
     for key, value in (
@@ -273,13 +288,28 @@ def _bag_command(
             options[key] = value
     settings = build_model(BagOptions, nest_dotted(options), f"bag:{path}")
     sequence, source = bag_sequence(str(path), settings)
+    lidar_topic = sequence.metadata["topics"]["lidar"]
     with open_bag(path) as reader:
-        lidar_messages = int(reader.topics[sequence.metadata["topics"]["lidar"]].msgcount)
+        lidar_messages = int(reader.topics[lidar_topic].msgcount) if lidar_topic else 0
     if settings.max_frames:
         lidar_messages = min(lidar_messages, settings.max_frames)
     names = choose_estimators(estimators, sequence)
+    skipped = not_applicable(estimators, sequence)
     overrides = settings_by_estimator(settings_overrides or [], names)
     disable = quiet or not sys.stderr.isatty()
+    run = dict(
+        names=names,
+        skipped=skipped,
+        overrides=overrides,
+        data_options=tuple(options.items()),
+        plots=plots,
+        quiet=quiet,
+        plot_formats=plot_formats,
+        disable=disable,
+    )
+    if source.front_end is None:  # no lidar (datasets.bags.sensor_source): no KISS-ICP
+        notes = sensor_front_end(sequence, source, out, disable, claim)
+        return run_estimators(sequence, out, rows=[], notes=notes, **run)
 
     seconds = run_front_end(sequence, source, lidar_messages, disable)
     if not source.front_end.frames:
@@ -362,7 +392,80 @@ def _bag_command(
         if front["kiss_icp_ate_rmse_m"] is not None
         else ""
     )
-    data_options = tuple(options.items())
+    return run_estimators(sequence, out, rows=rows, notes=[front_note], **run)
+
+
+def sensor_front_end(sequence, source, out: Path, disable: bool, claim) -> list[str]:
+    """A bag without lidar: one pass over the stream (the 2-D laser's corners, where its
+    scans are used, are computed once), its decisions printed as ``front end:`` lines and
+    its warnings as ``warning:`` lines; ``DIR/frontend/metrics.json`` with the 2-D laser
+    front end's figures (corners, re-observation NIS, time per scan) where it ran. Returns
+    the notes for the table."""
+    from workbench.progress import count_progress
+    from workbench.run_folder import dump_json
+
+    started = time.perf_counter()
+    with count_progress(disable) as progress:
+        task = progress.add_task("reading the bag", total=None)
+        for count, _ in enumerate(sequence.measurements(), start=1):
+            if count % 1000 == 0:
+                progress.update(task, completed=count)
+    seconds = time.perf_counter() - started
+    claim()
+    notes = []
+    laser = source.laser_front_end
+    if laser is not None:
+        front_dir = out / "frontend"
+        front_dir.mkdir(parents=True, exist_ok=True)
+        summary = laser.summary()
+        figures = {**summary, "seconds": seconds, "topics": sequence.metadata.get("topics")}
+        figures["skipped"] = source.report.lines()
+        from datasets.trajectory_io import write_atomic
+
+        write_atomic(front_dir / "metrics.json", dump_json(figures))
+        corners = summary.get("corners")
+        notes.append(
+            f"front end 2-D laser corners: {summary['scans']} scans"
+            + (f", {corners} corners" if corners is not None else "")
+            + (
+                f", {summary['front_end_ms_per_scan']:.3g} ms per scan"
+                if summary.get("front_end_ms_per_scan") is not None
+                else ""
+            )
+        )
+    topics = sequence.metadata.get("topics") or {}
+    used = ", ".join(f"{role} {topic}" for role, topic in topics.items() if topic)
+    notes.append(f"no lidar: no KISS-ICP front end; inputs: {used}")
+    for line in sequence.metadata.get("decisions") or ():
+        typer.echo(f"front end: {line}", err=True)
+    for line in sequence.metadata.get("warnings") or ():
+        typer.echo(f"warning: {sequence.name}: {line}", err=True)
+    return notes
+
+
+def run_estimators(
+    sequence,
+    out: Path,
+    rows: list[dict],
+    notes: list[str],
+    names: list[str],
+    skipped: dict[str, str],
+    overrides: dict,
+    data_options: tuple,
+    plots: bool,
+    quiet: bool,
+    plot_formats: tuple[str, ...],
+    disable: bool,
+) -> list[dict]:
+    """Each of ``names`` on ``sequence`` into ``out/<name>/``, then the table and figures
+    of them, with an n/a row and its reason for each of ``skipped`` (``bench``'s rows);
+    returns ``rows`` with a row per estimator run."""
+    from workbench.reporting import write_report
+    from workbench.results.runs import load_runs
+    from workbench.results.summary import PlannedPair
+    from workbench.run_folder import write_failed_run, write_run_folder
+    from workbench.runner import RunRequest, execute
+
     for name in names:
         row = {"estimator": name, "status": "ok"}
         try:
@@ -395,9 +498,17 @@ def _bag_command(
             write_failed_run(out / name, request, row["status"])
         rows.append(row)
     folders = [out / name for name in names]
+    records = load_runs(folders)
+    # the estimators the bag's sensors do not allow: n/a rows with the reason, as bench's
+    planned = [
+        PlannedPair(record.dataset_label, record.estimator_label, record.estimator, 1)
+        for record in records
+    ] + [PlannedPair(sequence.name, name, name, 0, reason) for name, reason in skipped.items()]
+    for name, reason in skipped.items():
+        typer.echo(f"n/a: {name}: {reason}", err=True)
     # the comparison figures as bench draws them, in the formats asked for
     report = write_report(
-        load_runs(folders), out, notes=[front_note], plot_formats=plot_formats if plots else ()
+        records, out, planned, notes=notes, plot_formats=plot_formats if plots else ()
     )
     if not quiet:
         from workbench.commands.bench import show_report
@@ -482,10 +593,12 @@ def register(app: typer.Typer) -> None:
             settings_overrides=set_ or [],
             plot_formats=parse_plot_formats(plot_format),
         )
-        ran = [row["estimator"] for row in rows[1:] if row["status"] == "ok"]
+        runs = [row for row in rows if row["estimator"] != "kiss-icp (front end)"]
+        ran = [row["estimator"] for row in runs if row["status"] == "ok"]
+        front = out / "frontend"  # none for a bag without lidar or 2-D laser
         typer.echo(
-            f"frontend: {out / 'frontend'}; {len(ran)} of {len(rows) - 1} estimator run(s) "
-            f"finished in {out}"
+            (f"frontend: {front}; " if front.is_dir() else "")
+            + f"{len(ran)} of {len(runs)} estimator run(s) finished in {out}"
         )
         if not ran:
             typer.echo("error: no estimator ran on this bag (the table says why)", err=True)
