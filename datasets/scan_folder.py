@@ -485,6 +485,9 @@ def scans_sequence(
         initial_state=InitialState(
             t=start, position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0])
         ),
+        # the front end's trajectory, increment covariances and counters, filled by the pass
+        # (a folder of clouds has no other motion input)
+        front_end=front_end.report if settings.odometry else None,
         metadata={
             "source": str(folder),
             "reference_source": f"TUM file {settings.ground_truth}"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -13,6 +13,9 @@ from datasets.measurements import Measurement, Sensor
 from datasets.odometry_noise import OdometryNoiseModel
 from datasets.sighting_correlation import SightingCorrelation
 from datasets.state import GroundTruth, LandmarkMap
+
+if TYPE_CHECKING:  # the lidar front end's modules load only where a front end runs
+    from datasets.lidar.frontend_report import FrontEndReport
 
 
 @dataclass(frozen=True)
@@ -101,6 +104,13 @@ class Sequence:
             configured with N anchors takes the first N (the simulator orders them so that
             any first three are non-collinear). None when the source has none.
         metadata: source, seed, options (JSON-serialisable).
+        front_end: what a lidar front end made of the recording
+            (``datasets.lidar.frontend_report.FrontEndReport``: its own pose trajectory,
+            the covariance of each increment it fed the estimators, counters), filled by
+            the front end during a pass and complete after one; None for sources without a
+            front end. Metrics compare estimates with it; the runner hands estimators a view
+            of the sequence without it (its poses are not truth, and an estimator must not
+            lean on them).
     """
 
     name: str
@@ -112,6 +122,7 @@ class Sequence:
     initial_state: InitialState | None = None
     known_landmarks: LandmarkMap | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
+    front_end: FrontEndReport | None = None
 
     def measurements(self) -> Iterator[Measurement]:
         """A fresh time-ordered iterator over every sensor's measurements."""

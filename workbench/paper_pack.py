@@ -184,6 +184,8 @@ def _options_text(options: Any) -> str:
 def _non_default_options(estimator: str, config: Any) -> dict[str, Any]:
     """The options of a run's resolved estimator config that differ from the estimator's
     defaults (the registry's ``Config``); {} when it cannot be compared."""
+    from datasets.errors import InputError
+    from datasets.option_renames import renamed_options
     from workbench.registry import estimator_entry
 
     if not isinstance(config, dict):
@@ -192,6 +194,11 @@ def _non_default_options(estimator: str, config: Any) -> dict[str, Any]:
         defaults = estimator_entry(estimator).load().Config().model_dump(mode="json")
     except Exception:  # an estimator no longer registered: its options stay in config.yaml
         return {}
+    # a run written before issue 39 recorded some options under their old names
+    try:
+        config, _ = renamed_options(config, defaults, estimator)
+    except InputError:  # an old and a new name disagreeing: shown as recorded
+        pass
     return {key: value for key, value in config.items() if defaults.get(key) != value}
 
 

@@ -6,6 +6,7 @@ Layout (all directly in the folder)::
     estimate.tum           causal trajectory (TUM, loadable by evo), when there is a pose
     estimate_smoothed.tum  smoothed trajectory (smoothers)
     reference.tum          ground-truth trajectory, when known
+    frontend.tum           the lidar front end's own trajectory, on a lidar source
     *.kitti                the same trajectories as KITTI poses (3x4 rows; times in the .tum)
     ape.zip, rpe.zip       evo result files (``evo_res`` reads them as they are; and
                            ``*_smoothed.zip``), see ``workbench.evo_results``
@@ -40,6 +41,7 @@ from workbench.run_files import (
     ERROR_FILE,
     ESTIMATE_FILE,
     EVENTS_FILE,
+    FRONT_END_FILE,
     METRICS_FILE,
     REQUEST_FILE,
 )
@@ -164,6 +166,7 @@ def write_run_folder(
     killed at any moment, ``out_dir`` holds the complete earlier run or the complete new
     one."""
     from workbench.folder_swap import replaced_as_a_whole
+    from workbench.metrics.frontend_agreement import departure_warning
     from workbench.metrics.summary import compute_metrics
 
     out_dir = Path(out_dir)
@@ -198,6 +201,10 @@ def write_run_folder(
         if reference is not None and len(reference):
             write_tum(folder / "reference.tum", reference)
             write_kitti(folder / "reference.kitti", reference)
+        front_end = result.sequence.front_end
+        front_trajectory = None if front_end is None else front_end.trajectory()
+        if front_trajectory is not None:  # the lidar front end's own, for the figures
+            write_tum(folder / FRONT_END_FILE, front_trajectory)
         save_npz_atomic(folder / ESTIMATE_FILE, estimate_arrays(estimate))
         events = {
             "notes": list(estimate.notes),
@@ -212,6 +219,7 @@ def write_run_folder(
             run_warnings(result)
             + divergence_warning(metrics, request.estimator, result.sequence.name)
             + frames_warning(metrics, request.estimator, result.sequence.name)
+            + departure_warning(metrics, request.estimator, result.sequence.name)
         )
         # what a loader or front end decided from the data, with its evidence (printed as
         # notes): kept beside the run so a reader knows how the data were read

@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from datasets.errors import InputError
 from datasets.lidar.corner_tracking import CornerTracker
 from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, scan_corners
+from datasets.lidar.frontend_report import FrontEndReport
 from datasets.lidar.imu_deskew import GyroBuffer, SweepMotion
 from datasets.lidar.increment_noise import IncrementNoiseFit, yaw_rate_disagreement
 from datasets.lidar.kiss_icp_odometry import (
@@ -161,13 +162,20 @@ class FrontEndFrame:
 class LidarFrontEnd:
     """KISS-ICP + corner extractor over a stream of clouds, with a prefix cache."""
 
-    def __init__(self, settings: FrontEndSettings) -> None:
+    def __init__(self, settings: FrontEndSettings, sole_motion_input: bool = True) -> None:
+        """``sole_motion_input``: the sequence offers no motion input but this front end's
+        increments (``FrontEndReport.sole_motion_input``)."""
         self.settings = settings
         self.frames: list[FrontEndFrame] = []
         self.untimed_frames = 0  # clouds without per-point times (taken as compensated)
         self._heading_checked: tuple[int, str | None] = (-1, None)  # (frames, warning)
         self._odometry = KissIcpOdometry(settings.kiss) if settings.odometry else None
         self.tracker = CornerTracker()
+        # what the pass made, typed, for the Sequence (datasets.lidar.frontend_report)
+        self.report = FrontEndReport(
+            sole_motion_input=sole_motion_input,
+            reobservation=self.tracker.stats if settings.corners else None,
+        )
         self.increment_noise = IncrementNoiseFit(
             settings.kiss.rotation_sigma_rad, settings.kiss.translation_sigma_m
         )
@@ -280,6 +288,15 @@ class LidarFrontEnd:
             time.perf_counter() - icp_done + selected - started,
         )
         self.frames.append(result)
+        self.report.add_frame(
+            t,
+            pose,
+            None if odometry is None else odometry.covariance,
+            result.icp_seconds,
+            result.corner_seconds,
+            0 if corners is None else len(corners.points),
+            cloud.point_times is None,
+        )
         return result
 
     def _inflated_increment(self, odometry: Odometry, extra: np.ndarray) -> Odometry:

@@ -164,8 +164,13 @@ def reference_for_drawing(reference: Trajectory, excluded: tuple[TruthInterval, 
 
 
 def front_end_file(folder: Path) -> Path | None:
-    """The front end's own trajectory that ``workbench bag`` writes beside its run folders
+    """The front end's own trajectory: the run folder's (``frontend.tum``, written for every
+    run on a lidar source), else the one ``workbench bag`` writes beside its run folders
     (``DIR/frontend/kiss_icp.tum`` for ``DIR/NAME/``), or None. The one place to add other
     front ends' files."""
-    path = Path(folder).parent / FRONT_END_FILE
-    return path if path.is_file() else None
+    from workbench.run_files import FRONT_END_FILE as RUN_FRONT_END_FILE
+
+    for path in (Path(folder) / RUN_FRONT_END_FILE, Path(folder).parent / FRONT_END_FILE):
+        if path.is_file():
+            return path
+    return None

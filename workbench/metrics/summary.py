@@ -64,7 +64,22 @@ frames (``frame_metrics``): ``frames``, ``frames_without_pose`` and the first of
     ``frames_without_pose_t``: where the data expect a pose (a landmark scan, a lidar frame)
     and the estimate has none.
 cost: ``steps`` (timing entries = measurements processed; without timing, causal pose
-    records), ``time_per_step_ms_median``, ``time_per_step_ms_p99``, ``time_total_s``.
+    records), ``time_per_step_ms_median``, ``time_per_step_ms_p99``, ``time_total_s``,
+    ``time_per_frame_ms`` (``time_total_s`` over ``frames``, None without frames).
+front end (``workbench.metrics.frontend_agreement``, on a sequence with a lidar front end,
+``Sequence.front_end``; every key None without one): the front end's own figures
+    ``frontend_name``, ``frontend_frames``, ``frontend_ate_rmse_m`` (its trajectory scored
+    as an estimate is, None without truth), ``frontend_ms_per_frame``,
+    ``frontend_reobservation_nis_per_dof`` (its corners' re-observations); the scored
+    history against its trajectory, aligned at the start: ``frontend_frames_compared``,
+    ``frontend_path_length_m``, ``frontend_max_deviation_m``,
+    ``frontend_max_deviation_percent_path``, ``frontend_final_yaw_diff_deg`` (estimate
+    minus front end); the departure check (chi-square on yaw and horizontal position):
+    ``frontend_departure_covariance`` (the rule used, or why not tested),
+    ``frontend_departure_max_nees`` and ``_t_s``, ``frontend_departure_bound``,
+    ``frontend_departure_false_alarm_rate`` (per run), and at the first frame over the bound
+    ``frontend_departure_t_s``, ``frontend_departure_nees``, ``frontend_departure_yaw_deg``,
+    ``frontend_departure_position_m`` (None when it stayed within).
 """
 
 from __future__ import annotations
@@ -88,6 +103,7 @@ from workbench.metrics.data_association import (
     score_loop_closures,
     true_ids_of_records,
 )
+from workbench.metrics.frontend_agreement import frontend_metrics
 from workbench.metrics.orientation import orientation_error_rad, planar_orientation_error_rad
 from workbench.metrics.rpe import kitti_segment_errors, rpe_errors
 from workbench.metrics.state_errors import (
@@ -491,6 +507,9 @@ def compute_metrics(
     metrics.update(divergence_metrics(estimate, sequence))
     metrics.update(frame_metrics(estimate))
     metrics.update(cost_metrics(estimate))
+    total, frames = metrics["time_total_s"], metrics["frames"]
+    metrics["time_per_frame_ms"] = 1e3 * total / frames if total is not None and frames else None
+    metrics.update(frontend_metrics(estimate, sequence))
     return metrics
 
 

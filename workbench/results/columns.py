@@ -131,6 +131,51 @@ _NAMED = (
     Column("association_precision", ("assoc.", "precision"), STAT, HIGHER),
     Column("association_recall", ("assoc.", "recall"), STAT, HIGHER),
     Column(
+        "frontend_max_deviation_m",
+        ("max dev.", "[m]"),
+        STAT,
+        LOWER,
+        "vs front end: each estimate against its lidar front end's own trajectory, both from "
+        "the same start: largest position deviation, as a share of the front end's path, and "
+        "the yaw difference at the last frame (estimate minus front end)",
+        group="vs front end",
+    ),
+    Column(
+        "frontend_max_deviation_percent_path",
+        ("max dev.", "[% path]"),
+        STAT,
+        LOWER,
+        group="vs front end",
+    ),
+    Column(
+        "frontend_final_yaw_diff_deg",
+        ("final yaw", "[deg]"),
+        STAT,
+        None,
+        group="vs front end",
+    ),
+    Column(
+        "frames",
+        ("frames", ""),
+        STAT,
+        None,
+        "frames: where the data expect a pose (landmark scans, lidar frames)",
+    ),
+    Column(
+        "frames_without_pose",
+        ("frames", "no pose"),
+        STAT,
+        LOWER,
+        "no pose: frames the estimate has no pose at",
+    ),
+    Column(
+        "time_per_frame_ms",
+        ("time/frame", "[ms]"),
+        STAT,
+        LOWER,
+        "time/frame: a run's wall-clock time over its frames",
+    ),
+    Column(
         "time_total_s",
         ("time/run", "[s]"),
         STAT,

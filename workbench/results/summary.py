@@ -13,6 +13,10 @@ and for each consistency block B ``anees_B_per_dof``, ``anees_B_per_dof_lower``,
 ``verdict_B``, ``scored_B`` (causal / smoothed / innovation), ``inside_B`` (fraction of steps
 inside the per-step 95 % band, a diagnostic); ``nis_per_dof`` and ``nis_inside_fraction``
 pooled over every update of every run; cost columns start with ``time_``.
+
+A dataset whose runs had a lidar front end (metrics.json ``frontend_*``) gets a row for the
+front end itself first (``front_end_row``: its own ATE, ms per frame, the NIS of its corners'
+re-observations), and each estimator's agreement with it (``FRONT_END_KEYS``).
 """
 
 from __future__ import annotations
@@ -53,8 +57,18 @@ MAP_KEYS = (
     "loop_closures",
     "loop_closure_precision",
 )
-COST_KEYS = ("time_per_step_ms_median", "time_per_step_ms_p99", "time_total_s")
-STAT_KEYS = ACCURACY_KEYS + MAP_KEYS + COST_KEYS
+FRONT_END_KEYS = (
+    "frontend_max_deviation_m",
+    "frontend_max_deviation_percent_path",
+    "frontend_final_yaw_diff_deg",
+)
+"""Each estimate against its lidar front end's trajectory (``metrics.frontend_agreement``)."""
+FRAME_KEYS = ("frames", "frames_without_pose")
+COST_KEYS = ("time_per_step_ms_median", "time_per_step_ms_p99", "time_total_s", "time_per_frame_ms")
+STAT_KEYS = ACCURACY_KEYS + FRONT_END_KEYS + MAP_KEYS + FRAME_KEYS + COST_KEYS
+
+FRONT_END_ROW = "front end"
+"""``PairSummary.estimator_name`` of a dataset's front-end row (``front_end_rows``)."""
 
 
 @dataclass(frozen=True)
@@ -233,7 +247,73 @@ def summarize(
         key=lambda item: (item[0][0], _registry_order(item[1][0].estimator), item[0][1]),
     )
     rows += [summarize_pair(dataset, estimator, runs) for (dataset, estimator), runs in remaining]
+    rows = with_front_end_rows(rows)
     return rows if reference is None else with_reference_ratios(rows, reference)
+
+
+def front_end_row(dataset: str, records: list[RunRecord]) -> PairSummary | None:
+    """The row of a dataset's lidar front end, from what its runs' metrics.json say of it
+    (``frontend_*``): its own ATE where there is truth (``ate_rmse_m``), its ms per frame
+    (``time_per_frame_ms``) and frames, and the NIS per dof of its corners' re-observations
+    (``nis_per_dof``). One value per seed (every run of a seed shares its front end); None
+    when no run has a front end."""
+    by_seed: dict[int, dict] = {}
+    for record in records:
+        metrics = record.metrics or {}
+        if record.finished and metrics.get("frontend_name"):
+            by_seed.setdefault(record.seed, metrics)
+    if not by_seed:
+        return None
+    found = list(by_seed.values())
+
+    def stat(key: str) -> Stat | None:
+        values = [float(m[key]) for m in found if _is_number(m.get(key))]
+        return Stat.of(values)
+
+    stats = {
+        key: value
+        for key, value in (
+            ("ate_rmse_m", stat("frontend_ate_rmse_m")),
+            ("time_per_frame_ms", stat("frontend_ms_per_frame")),
+            ("frames", stat("frontend_frames")),
+            ("frames_without_pose", Stat.of([0.0] * len(found))),
+        )
+        if value is not None
+    }
+    nis = stat("frontend_reobservation_nis_per_dof")
+    name = str(found[0]["frontend_name"])
+    return PairSummary(
+        dataset,
+        f"{FRONT_END_ROW} ({name})",
+        FRONT_END_ROW,
+        "ok",
+        len(found),
+        len(found),
+        None,
+        stats=stats,
+        nis_per_dof=None if nis is None else nis.mean,
+    )
+
+
+def with_front_end_rows(rows: list[PairSummary]) -> list[PairSummary]:
+    """``rows`` with each dataset's front-end row (``front_end_row``) before its first row."""
+    result: list[PairSummary] = []
+    seen: set[str] = set()
+    for row in rows:
+        if row.dataset not in seen:
+            seen.add(row.dataset)
+            own = [run for other in rows if other.dataset == row.dataset for run in other.runs]
+            front = front_end_row(row.dataset, own)
+            if front is not None:
+                result.append(front)
+        result.append(row)
+    return result
+
+
+def _is_number(value: object) -> bool:
+    return (
+        isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
+    )
 
 
 def _number(value: float | None) -> float | None:

@@ -22,7 +22,13 @@ from workbench.metrics.verdicts import MIN_POOLED_UPDATES, MIN_RUNS, Verdict
 from workbench.results.columns import CUSTOM, DEFAULT_TABLE, PRESETS, parse_table_choice
 from workbench.results.consistency import TABLE_BLOCKS, ConsistencyCell
 from workbench.results.latex import latex_tables
-from workbench.results.summary import REFERENCE_KEY, PairSummary, Stat, summary_frame
+from workbench.results.summary import (
+    FRONT_END_ROW,
+    REFERENCE_KEY,
+    PairSummary,
+    Stat,
+    summary_frame,
+)
 
 VERDICT_MARKS = {
     Verdict.CONSISTENT: "✓",
@@ -73,6 +79,17 @@ TAIL_COLUMNS = (
     # finish take the time (tens of seconds a run against ekf-slam's 0.8 s), so a per-step
     # median ranks them backwards; the median and 99th percentile per step stay in table.csv
     StatColumn("time_total_s", "time/run [s]"),
+)
+
+# a lidar dataset's (one with a front end): each estimate against the front end's own
+# trajectory, and every frame and its cost (``workbench.metrics.frontend_agreement``)
+FRONT_END_COLUMNS = (
+    StatColumn("frontend_max_deviation_m", "vs front end: max dev. [m]"),
+    StatColumn("frontend_max_deviation_percent_path", "max dev. [% path]"),
+    StatColumn("frontend_final_yaw_diff_deg", "final yaw diff. [deg]"),
+    StatColumn("frames", "frames"),
+    StatColumn("frames_without_pose", "frames without pose"),
+    StatColumn("time_per_frame_ms", "time/frame [ms]"),
 )
 
 NO_VERDICT = (
@@ -131,13 +148,35 @@ def _shown_blocks(rows: list[PairSummary]) -> list[str]:
     return [block for block in TABLE_BLOCKS if any(block in row.cells for row in rows)]
 
 
+def _has_front_end(rows: list[PairSummary]) -> bool:
+    return any(row.estimator_name == FRONT_END_ROW for row in rows)
+
+
+def _front_end_note(row: PairSummary) -> str:
+    """What a front-end row is (``summary.front_end_row``), with its corners' NIS."""
+    nis = (
+        ""
+        if row.nis_per_dof is None
+        else f"; NIS/dof of its corners' re-observations {format_number(row.nis_per_dof, 3)}"
+    )
+    return (
+        f"{row.dataset} / {row.estimator}: the lidar front end alone (its own trajectory's "
+        f"ATE where there is truth, its time per frame{nis}); every other row's max dev., "
+        "% path and final yaw are that estimate against this trajectory, both from the same "
+        "start (workbench/metrics/frontend_agreement.py)"
+    )
+
+
 def table_notes(rows: list[PairSummary], notes: list[str] = ()) -> list[str]:
     """Notes under a table: the plan's notes, what each dataset's models were fitted on
     (its calibration), n/a pairs with the reason, failures, the runs'
-    warnings (dropped rows, sightings not used as stated), and the rows whose causal
-    columns are blank because the estimator has no causal estimate."""
+    warnings (dropped rows, sightings not used as stated), the rows whose causal
+    columns are blank because the estimator has no causal estimate, and what a front-end
+    row is."""
     found = list(notes)
     for row in rows:
+        if row.estimator_name == FRONT_END_ROW:
+            found.append(_front_end_note(row))
         found.extend(f"calibration of {row.dataset}: {text}" for text in row.calibrations())
         if row.status == "n/a":
             found.append(f"n/a {row.dataset} / {row.estimator}: {row.reason}")
@@ -173,6 +212,8 @@ def _runs_text(row: PairSummary) -> str:
 def markdown_table(rows: list[PairSummary], notes: list[str] = ()) -> str:
     """The compact table in Markdown (GitHub pipes), with the legend and notes under it."""
     stats, tail = _shown_stats(rows, STAT_COLUMNS), _shown_stats(rows, TAIL_COLUMNS)
+    if _has_front_end(rows):
+        stats += _shown_stats(rows, FRONT_END_COLUMNS)
     blocks = _shown_blocks(rows)
     header = ["dataset", "estimator", "runs"] + [c.header for c in stats]
     header += [BLOCK_HEADERS[b] for b in blocks] + ["NIS/dof pooled"] + [c.header for c in tail]
@@ -309,6 +350,8 @@ def _terminal_columns(rows: list[PairSummary]) -> list[TerminalColumn]:
                 lambda r: _mean_text(r, "gps_holdout_rmse_m", "gps_holdout_rmse_smoothed_m"),
             )
         )
+    if _has_front_end(rows):
+        columns += _front_end_terminal_columns(rows)
     for block in _shown_blocks(rows):
         header = ("NIS", "per dof") if block == "nis" else (BLOCK_NAMES[block], "NEES/dof")
         columns.append(
@@ -329,6 +372,32 @@ def _terminal_columns(rows: list[PairSummary]) -> list[TerminalColumn]:
     return columns
 
 
+def _frames_text(row: PairSummary) -> str:
+    """``posed/frames`` (means over runs), "" without frames."""
+    frames, missing = row.stats.get("frames"), row.stats.get("frames_without_pose")
+    if frames is None:
+        return ""
+    posed = frames.mean - (0.0 if missing is None else missing.mean)
+    return f"{format_number(posed, 4)}/{format_number(frames.mean, 4)}"
+
+
+def _front_end_terminal_columns(rows: list[PairSummary]) -> list[TerminalColumn]:
+    """A lidar dataset's columns: each estimate against the front end's trajectory (max
+    deviation, its share of the path, final yaw difference), frames with a pose of all
+    frames, and the time per frame."""
+
+    def mean(key: str, digits: int = 3):
+        return lambda r: format_number(r.stats[key].mean, digits) if key in r.stats else ""
+
+    return [
+        TerminalColumn(("vs front end", "max dev [m]"), False, mean("frontend_max_deviation_m")),
+        TerminalColumn(("", "[% path]"), False, mean("frontend_max_deviation_percent_path")),
+        TerminalColumn(("final yaw", "[deg]"), False, mean("frontend_final_yaw_diff_deg", 2)),
+        TerminalColumn(("frames", "posed/all"), False, _frames_text),
+        TerminalColumn(("time/frame", "[ms]"), False, mean("time_per_frame_ms")),
+    ]
+
+
 def _terminal_table(
     rows: list[PairSummary], heading: str, columns: list[TerminalColumn], compact: bool
 ):
@@ -336,7 +405,7 @@ def _terminal_table(
     from rich.table import Table
     from rich.text import Text
 
-    # labels are Text, never markup: "ekf-slam [acceleration_density=0.2]" is a label, and
+    # labels are Text, never markup: "ekf-slam [velocity_walk_m_s_sqrt_s=0.2]" is a label, and
     # so is a unit: "[m]" would read as a style
     table = Table(
         title=Text(heading),
