@@ -237,7 +237,13 @@ class DeadReckoning:
         self._record()
 
     def _odometry(self, odometry: Odometry) -> None:
-        dt = self._advance_time(odometry.t)
+        if odometry.relative_pose is not None:
+            # an increment spans its whole interval, however long: a gap between two loses no
+            # motion (a CARMEN log's scans pause for a second and more), so max_gap_s, the
+            # limit of integrating rates, does not apply
+            dt = odometry.t - self.t
+        else:
+            dt = self._advance_time(odometry.t)
         if self.dimension == 3:
             self._compose_spatial(odometry)
             self.t = odometry.t
