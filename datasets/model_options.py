@@ -19,9 +19,12 @@ model. Old names are accepted with a warning (``datasets.option_renames``).
 
 from __future__ import annotations
 
-from typing import ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+if TYPE_CHECKING:
+    import numpy as np
 
 DEFAULT_VELOCITY_WALK_M_S_SQRT_S = 0.1
 """Guerreiro et al. (2013), section V: sigma_v = 0.1 m/s/sqrt(s) on every axis."""
@@ -114,6 +117,22 @@ class IntervalRateOptions(BaseModel):
         "second order), 'hold' the earlier sample held (zero-order hold), 'latest' the later "
         "sample (samples are averages over the interval that ends at them)",
     )
+
+
+def interval_value(
+    policy: IntervalRate, earlier: np.ndarray | None, later: np.ndarray
+) -> np.ndarray:
+    """The rate (or specific force) used over the interval between two samples, as
+    ``interval_rate`` says: 'average' the trapezoid ``(earlier + later) / 2`` (Aghili eq. (34):
+    samples are instantaneous values), 'hold' the earlier sample, 'latest' the later one.
+    Without an earlier sample (the first interval) the later one. Shapes as given (any
+    matching arrays). The smoothers' preintegration interpolates within an interval instead
+    (``smoothers.imu_graph.KeyframeImuIntegrator``: IMU sub-intervals cut at keyframes)."""
+    if earlier is None or policy == "latest":
+        return later
+    if policy == "average":
+        return 0.5 * (earlier + later)
+    return earlier
 
 
 GapPolicy = Literal["raise", "inflate"]

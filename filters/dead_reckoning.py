@@ -33,6 +33,7 @@ from datasets.model_options import (
     InitialAccelBiasOptions,
     InitialPriorOptions,
     VelocityWalkOptions,
+    interval_value,
 )
 from datasets.rotations import (
     matrix_from_quat_wxyz,
@@ -206,8 +207,8 @@ class DeadReckoning:
         if dt == 0.0 or previous is None:
             return
         # the interval's average of its two end samples (second order, as Aghili eq. (34))
-        omega = 0.5 * (previous[0] + current[0])
-        accel = 0.5 * (previous[1] + current[1])
+        omega = interval_value("average", previous[0], current[0])
+        accel = interval_value("average", previous[1], current[1])
         increment = so3_exp(omega * dt)
         # velocity and position with the rotation at mid-interval
         world_accel = self.rotation @ so3_exp(0.5 * omega * dt) @ accel + GRAVITY_M_S2

@@ -174,3 +174,53 @@ def test_simulated_corner_nees_is_consistent_over_seeds() -> None:
         sums += figures["extracted"]["count"] * figures["extracted"]["nees_per_dof"]
     low, high = chi2.ppf([0.025, 0.975], 2 * counts) / (2 * counts)
     assert low < sums / counts < high
+
+
+@pytest.mark.study
+def test_batch_smoother_relations_on_simulated_scans_are_within_its_covariance() -> None:
+    """``sim:laser2d`` through the same front end, ``smoother-batch`` without ids: relations
+    drawn from the truth (scan ``i`` to scan ``i + 10``, 2 s apart, every 20th scan) are
+    scored by the workbench's relations metric, and each relation's error
+    ``log(G^-1 T_i^-1 T_j)`` (GTSAM ``Pose2``, independent of the metric) is judged against the
+    covariance of the relative pose ``Ad(D^-1) P_i Ad(D^-1)^T + P_j`` (the smoothed marginals,
+    right perturbation [x, y, theta]). That sum leaves out the two poses' cross covariance,
+    positive along a smoothed chain, so it bounds the relative covariance from above: the test
+    is one-sided, the pooled NEES per dof under the 99.5 % chi-square bound (an overconfident
+    smoother fails it; a lower bound would test the left-out correlation, not the smoother)."""
+    import gtsam
+
+    from workbench.metrics.relations import relation_errors, relations_from_trajectory
+    from workbench.registry import load_dataset
+    from workbench.runner import RunRequest, execute
+
+    dataset = "sim:laser2d"
+    sequence = load_dataset(dataset, 0, {})
+    estimate = execute(RunRequest("smoother-batch", dataset), sequence=sequence).estimate
+    smoothed = estimate.smoothed.pose
+    truth = sequence.ground_truth.pose
+    # the truth and the estimate at the scans' stamps (one pose per scan in both)
+    np.testing.assert_allclose(smoothed.t, truth.t, atol=1e-9)
+    first = np.arange(0, len(truth) - 10, 20)
+    pairs = np.column_stack([first, first + 10])
+    relations = relations_from_trajectory(truth, pairs)
+    scored = relation_errors(smoothed, relations)
+    assert scored.used_count == len(pairs) >= 30 and scored.skipped_count == 0
+
+    def pose2(trajectory, k: int) -> gtsam.Pose2:
+        return gtsam.Pose2(*trajectory.positions[k, :2], trajectory.rotations[k])
+
+    nees, translation = [], []
+    for i, j in pairs:
+        relative = pose2(smoothed, i).between(pose2(smoothed, j))
+        given = pose2(truth, i).between(pose2(truth, j))
+        error = gtsam.Pose2.Logmap(given.between(relative))
+        adjoint = relative.inverse().AdjointMap()
+        covariance = adjoint @ smoothed.covariances[i] @ adjoint.T + smoothed.covariances[j]
+        nees.append(error @ np.linalg.solve(covariance, error))
+        translation.append(np.linalg.norm(given.between(relative).translation()))
+    # the metric's translational errors are the same relations' (the metric matches GTSAM to
+    # 1e-9 in test_relations; here it scores what this test judges)
+    np.testing.assert_allclose(scored.translation_errors_m, translation, atol=1e-9)
+    dof = 3 * len(pairs)
+    print(f"relations NEES per dof {np.sum(nees) / dof:.3f} over {dof} dof")
+    assert np.sum(nees) / dof < chi2.ppf(0.995, dof) / dof, np.sum(nees) / dof

@@ -47,6 +47,7 @@ from pydantic import BaseModel
 from datasets.errors import InputError
 from datasets.estimate import Estimate, EstimateRecorder
 from datasets.measurements import ImuSample, LandmarkScan, Measurement, Sensor
+from datasets.model_options import interval_value
 from datasets.rotations import skew
 from datasets.sequence import Sequence
 from datasets.state import BlockName, Frame, LandmarkMap
@@ -248,12 +249,14 @@ class AghiliFilter:
             raise InputError(
                 f"{self.name}: IMU gap of {dt:.3f} s at t={sample.t:.6f} s (max_gap_s={self.config.max_gap_s})"
             )
-        if self._last_imu is None:
-            gyro_mean, accel_mean = gyro, accel
-        else:
-            # eq. (34): interval average of the signal, trapezoid of the bounding samples
-            gyro_mean = 0.5 * (gyro + np.asarray(self._last_imu.gyro, dtype=float))
-            accel_mean = 0.5 * (accel + np.asarray(self._last_imu.accel, dtype=float))
+        # eq. (34): interval average of the signal, trapezoid of the bounding samples
+        last = self._last_imu
+        gyro_mean = interval_value(
+            "average", None if last is None else np.asarray(last.gyro, dtype=float), gyro
+        )
+        accel_mean = interval_value(
+            "average", None if last is None else np.asarray(last.accel, dtype=float), accel
+        )
         self._propagate(dt, gyro_mean, accel_mean)
         self._last_imu = sample
         self.counts["imu"] += 1

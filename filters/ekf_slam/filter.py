@@ -48,6 +48,7 @@ from datasets.errors import InputError
 from datasets.estimate import AssociationDecision, Estimate, EstimateRecorder
 from datasets.estimator_options import per_body_axis
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Odometry, Sensor
+from datasets.model_options import interval_value
 from datasets.odometry_noise import OdometryNoiseModel
 from datasets.rotations import (
     PLANAR_GENERATOR,
@@ -251,11 +252,7 @@ class EkfSlam:
                 raise InputError(
                     f"gyro rate at t={measurement.t:.6f} s must be {self.layout.rotation_size} finite values, got {rate}"
                 )
-            interval_rate = rate
-            if self.config.interval_rate == "average" and self.last_rate is not None:
-                interval_rate = 0.5 * (self.last_rate + rate)  # trapezoid of instantaneous samples
-            elif self.config.interval_rate == "hold" and self.last_rate is not None:
-                interval_rate = self.last_rate
+            interval_rate = interval_value(self.config.interval_rate, self.last_rate, rate)
             self.last_rate = rate
             new, transition, process = predict_gyro_cv(
                 self.vehicle,

@@ -67,6 +67,7 @@ from datasets.measurements import (
     Odometry,
     Sensor,
 )
+from datasets.model_options import interval_value
 from datasets.range_bearing import first_order_covariance
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, rot2, so3_exp
 from datasets.sequence import Sequence
@@ -433,12 +434,10 @@ class SensorBasedSlam:
                 )
             self._propagate_to(t)
             return
-        if self.config.interval_rate == "average" and self.rate is not None:
-            self._propagate_to(t, 0.5 * (self.rate + rate))
-        elif self.config.interval_rate == "latest":
-            self._propagate_to(t, rate)
+        if self.rate is None and self.config.interval_rate != "latest":
+            self._propagate_to(t)  # no earlier sample to average or hold: zero rate
         else:
-            self._propagate_to(t)
+            self._propagate_to(t, interval_value(self.config.interval_rate, self.rate, rate))
         self.rate = rate
 
     def _propagate_to(self, t: float, rate: np.ndarray | None = None) -> None:
