@@ -222,7 +222,8 @@ def test_topic_discovery_lists_candidates():
     }
     with pytest.raises(
         InputError,
-        match=r"several lidar topics: /a/points \[sensor_msgs/msg/PointCloud2\], /b/points .*lidar_topic=TOPIC",
+        match=r"several lidar topics: /a/points \[sensor_msgs/msg/PointCloud2\], /b/points .*"
+        r"choose one with --data lidar_topic=TOPIC \(workbench bag: --lidar-topic TOPIC\)",
     ):
         discover_topics(Path("x.bag"), types)
     assert discover_topics(Path("x.bag"), types, lidar="/b/points").lidar == "/b/points"

@@ -309,6 +309,14 @@ def _listing(types: dict[str, str]) -> str:
     )
 
 
+def _option_hint(option: str) -> str:
+    """How a user names a topic: ``--data KEY=TOPIC`` (any command), and the flag of
+    ``workbench bag`` where it has one (the two-topic error once said ``lidar_topic=TOPIC``,
+    which no command takes as written)."""
+    flag = {"lidar_topic": "--lidar-topic", "imu_topic": "--imu-topic"}.get(option)
+    return f"--data {option}=TOPIC" + (f" (workbench bag: {flag} TOPIC)" if flag else "")
+
+
 def _choose(
     path: Path,
     types: dict[str, str],
@@ -338,7 +346,9 @@ def _choose(
         return None
     if len(candidates) > 1:
         listed = ", ".join(f"{topic} [{types[topic]}]" for topic in candidates)
-        raise InputError(f"{path}: several {role} topics: {listed}; choose one with {option}=TOPIC")
+        raise InputError(
+            f"{path}: several {role} topics: {listed}; choose one with {_option_hint(option)}"
+        )
     return candidates[0]
 
 
