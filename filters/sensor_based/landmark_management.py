@@ -11,6 +11,10 @@ body-frame position lies inside the configured range/field of view *and* is know
 enough (position std below a threshold) for a miss to mean something. The simulator's
 line of sight (walls) hides landmarks the geometry alone says are in view, so the miss
 count is consecutive misses, reset by any sighting, and the threshold is generous.
+
+A sighting the association declares new becomes a landmark (``create_landmark``: in the
+robocentric frame the measurement is the landmark, with its valid line directions), and
+after each scan the deletions leave the state (``manage_after_scan``).
 """
 
 from __future__ import annotations
@@ -18,6 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from filters.sensor_based.directions import direction_covariance
+from filters.sensor_based.state import FilterState
 
 
 @dataclass(frozen=True)
@@ -147,3 +154,47 @@ class LandmarkManager:
                 doomed.append(int(landmark_ids[index]))
                 self.deleted["cap"] += 1
         return doomed
+
+
+def create_landmark(
+    state: FilterState,
+    manager: LandmarkManager,
+    direction_sigma_rad: float,
+    t: float,
+    point: np.ndarray,
+    cov: np.ndarray,
+    directions: np.ndarray | None,
+) -> int:
+    """A new landmark from a sighting (its point, covariance and the finite, non-zero line
+    directions measured with it); returns its map id."""
+    direction_values = direction_covs = None
+    if directions is not None:
+        valid = [u for u in directions if np.all(np.isfinite(u)) and np.linalg.norm(u) > 0]
+        if valid:
+            direction_values = [u / np.linalg.norm(u) for u in valid]
+            direction_covs = [
+                direction_covariance(u, direction_sigma_rad) for u in direction_values
+            ]
+    landmark_id = state.add_landmark(point, cov, direction_values, direction_covs)
+    manager.created(landmark_id, t)
+    return landmark_id
+
+
+def manage_after_scan(
+    state: FilterState,
+    manager: LandmarkManager,
+    source_of: dict[int, int],
+    t: float,
+    seen_ids: set[int],
+) -> None:
+    """Update the records after a scan (``seen_ids``: the map ids associated or created in
+    it) and remove the landmarks the policy deletes from the state, the records and
+    ``source_of``."""
+    ids, positions = state.landmark_positions()
+    blocks = state.position_blocks()
+    doomed = manager.after_scan(t, ids, np.isin(ids, list(seen_ids)), positions, blocks)
+    if doomed:
+        state.remove_landmarks(doomed)
+        manager.removed(doomed)
+        for landmark_id in doomed:
+            source_of.pop(landmark_id, None)

@@ -12,7 +12,8 @@ noise-free "measurement" ``z_ij = x_i - x_j = 0`` (``Theta_ij = 0``): innovation
 ``nu_ij = -(x_i - x_j)``, covariance ``H_ij Sigma H_ij^T`` including the cross-covariance of
 the two sets (the paper prints ``H Sigma H`` without the transpose, a typo). If at least
 ``min_pairs`` pairs are jointly compatible, the standard Kalman update with that constraint
-makes each pair equal and fully correlated, and one of each pair is removed.
+makes each pair equal and fully correlated, and one of each pair is removed
+(``fuse_loop_closures``: the old landmark's id is kept).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ import numpy as np
 from datasets.estimator_options import DEFAULT_GATE_PROBABILITY, DEFAULT_MAX_JCBB_NODES
 from filters import kalman
 from filters.association import associate_jcbb
+from filters.sensor_based.landmark_management import LandmarkRecord
+from filters.sensor_based.state import FilterState
 
 
 @dataclass(frozen=True)
@@ -128,3 +131,66 @@ def constraint_update(
     if outcome.correction is None:
         return x, covariance
     return x + outcome.correction, covariance
+
+
+def fuse_loop_closures(
+    state: FilterState,
+    records: dict[int, LandmarkRecord],
+    source_of: dict[int, int],
+    policy: LoopClosurePolicy,
+    max_old_sigma_m: float,
+    t: float,
+) -> list[list[int]]:
+    """Section IV-C: fuse current landmarks with their old duplicates; keep the old id.
+
+    The constraint update makes each pair equal; the current landmark's sightings, visibility
+    and scan id (``source_of``) pass to the old one. Old landmarks whose largest position std
+    exceeds ``max_old_sigma_m`` are not candidates.
+
+    Returns:
+        the fused [kept, removed] map-id pairs ([] when no loop closes); the removed
+        landmarks are still in the state and in ``records``.
+    """
+    ids, positions = state.landmark_positions()
+    if len(ids) < 2:
+        return []
+    ages = np.array([t - records[int(i)].last_seen_t for i in ids])
+    current = np.flatnonzero(ages <= policy.current_window_s)
+    old = np.flatnonzero(ages > policy.old_after_s)
+    if len(old):
+        # Measured on the data: the true revisit on sim:guerreiro-loop pairs old landmarks
+        # of std ~0.6 m; Victoria Park's false closures had 2-21 m (trees 5-10 m apart).
+        largest = np.sqrt(np.linalg.eigvalsh(state.position_blocks(old))[:, -1])
+        old = old[largest <= max_old_sigma_m]
+    if len(current) == 0 or len(old) == 0:
+        return []
+    union = np.concatenate([current, old])  # only these landmarks' joint covariance
+    local = find_loop_closure(
+        positions[union],
+        state.position_covariance(union),
+        np.arange(len(current)),
+        np.arange(len(current), len(union)),
+        policy,
+    )
+    pairs = [(int(union[i]), int(union[j])) for i, j in local]
+    if not pairs:
+        return []
+    features = state.position_features()
+    first = state.state_indices(features[[i for i, _ in pairs]])
+    second = state.state_indices(features[[j for _, j in pairs]])
+    state.x, state.covariance = constraint_update(state.x, state.covariance, first, second)
+    fused = []
+    for current_index, old_index in pairs:
+        kept, removed = int(ids[old_index]), int(ids[current_index])
+        kept_record, removed_record = records[kept], records[removed]
+        kept_record.last_seen_t = max(kept_record.last_seen_t, removed_record.last_seen_t)
+        kept_record.observations += removed_record.observations
+        kept_record.missed_in_view = 0
+        kept_feature, removed_feature = features[old_index], features[current_index]
+        if state.visible[removed_feature]:
+            state.visible[kept_feature] = True
+            state.measured[kept_feature] = state.measured[removed_feature]
+        if removed in source_of:
+            source_of.setdefault(kept, source_of.pop(removed))
+        fused.append([kept, removed])
+    return fused
