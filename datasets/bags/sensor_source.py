@@ -59,7 +59,6 @@ from datasets.bags.wheel_odometry import (
     PoseSample,
     WheelIncrements,
     WheelNoise,
-    noise_policy,
     pose_at,
 )
 from datasets.errors import InputError
@@ -313,12 +312,7 @@ def sensor_sequence(
         )
     noise_model: WheelNoise | None = None
     if role.topic is not None:
-        noise_model, noise_text = noise_policy(
-            settings.odometry_noise,
-            role.evidence.first,
-            role.evidence.message_interval_s,
-            role.topic,
-        )
+        noise_model, noise_text = role.noise(settings.odometry_noise)
         decisions.append(f"odometry noise: {noise_text}")
     initial, start_text = _start(
         path, settings, time_base, imu_topic, gps_topic, origin, role, ground_truth, warnings

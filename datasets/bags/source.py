@@ -60,7 +60,7 @@ from datasets.bags.reader import (
     topic_types,
 )
 from datasets.bags.topic_roles import OdometryRole, choose_odometry, named_not_wheel
-from datasets.bags.wheel_odometry import PoseSample, WheelIncrements, noise_policy
+from datasets.bags.wheel_odometry import PoseSample, WheelIncrements
 from datasets.errors import InputError
 from datasets.laser2d.frontend import Laser2dFrontEndSettings
 from datasets.lidar.corner_truth import (
@@ -554,12 +554,7 @@ def _other_inputs(
     if role.text:
         decisions.append(role.text)
     if role.topic is not None:
-        _, text = noise_policy(
-            settings.odometry_noise,
-            role.evidence.first,
-            role.evidence.message_interval_s,
-            role.topic,
-        )
+        _, text = role.noise(settings.odometry_noise)
         decisions.append(f"odometry noise: {text}")
     return decisions, role
 
@@ -567,12 +562,7 @@ def _other_inputs(
 def wheel_increments(measurements, wheel: OdometryRole, settings: BagOptions, time_base):
     """``measurements`` with the wheel odometry's ``PoseSample`` turned into ``Odometry``
     increments (``datasets.bags.wheel_odometry``)."""
-    noise, _ = noise_policy(
-        settings.odometry_noise,
-        wheel.evidence.first,
-        wheel.evidence.message_interval_s,
-        wheel.topic,
-    )
+    noise, _ = wheel.noise(settings.odometry_noise)
     increments = WheelIncrements(
         noise,
         from_twist=wheel.from_twist,

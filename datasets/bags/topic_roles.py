@@ -32,7 +32,13 @@ from pathlib import Path
 import numpy as np
 
 from datasets.bags.reader import ODOMETRY, POSE_TYPES, ReadReport, iter_messages
-from datasets.bags.wheel_odometry import PoseSample, meaningful_axes, pose_sample
+from datasets.bags.wheel_odometry import (
+    PoseSample,
+    WheelNoise,
+    meaningful_axes,
+    noise_policy,
+    pose_sample,
+)
 from datasets.errors import InputError, did_you_mean
 
 EVIDENCE_MESSAGES = 200
@@ -235,6 +241,15 @@ class OdometryRole:
     evidence: PoseTopicEvidence | None
     text: str
     from_twist: bool = False
+
+    def noise(self, choice: str) -> tuple[WheelNoise, str]:
+        """The chosen topic's noise model for ``--data odometry_noise=choice`` and the line of
+        evidence for it (``wheel_odometry.noise_policy``, read from the topic's first message)."""
+        if self.topic is None or self.evidence is None:
+            raise ValueError("no odometry topic was chosen")
+        return noise_policy(
+            choice, self.evidence.first, self.evidence.message_interval_s, self.topic
+        )
 
 
 def choose_odometry(
