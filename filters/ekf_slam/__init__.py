@@ -8,9 +8,14 @@ linearised system has spurious heading information. Modules:
 - ``config``: options (pydantic).
 - ``layout``: where each block sits in the joint state vector.
 - ``motion``: vehicle motion models (odometry relative pose, gyro + constant velocity).
+- ``motion_input``: the motion input chosen and one sample's increment or rate, motion gaps.
 - ``observation``: body-frame landmark observation, its Jacobians and inverse.
+- ``scan_update``: the map's predictions for association, the stacked scan update.
+- ``landmarks``: landmark initialisation, sighting counts, probation.
+- ``recording``: the recorded vehicle posterior, JCBB search diagnostics, the run's note.
 - ``boundary``: conversion of the world-frame EKF error to the interface conventions.
-- ``filter``: the estimator class ``EkfSlam``.
+- ``filter``: the estimator class ``EkfSlam``, which sequences the steps.
+- ``multi_hypothesis``: ``ekf-slam-mht``, several ``EkfSlam`` under association hypotheses.
 
 Kept free of imports so that loading one module does not load the others.
 """

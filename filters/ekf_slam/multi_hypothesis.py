@@ -56,8 +56,10 @@ from datasets.sequence import Sequence
 from datasets.stream_clock import StreamClock
 from filters.association.hypotheses import ranked_hypotheses
 from filters.ekf_slam.config import MultiHypothesisEkfSlamConfig
-from filters.ekf_slam.filter import EkfSlam, MapPredictor, motion_gap, planar_odometry_step
+from filters.ekf_slam.filter import EkfSlam
 from filters.ekf_slam.motion import compose_planar
+from filters.ekf_slam.motion_input import motion_gap, planar_odometry_step
+from filters.ekf_slam.scan_update import MapPredictor
 
 INTERPRETATIONS_PER_SCAN = 6
 """Interpretations of a scan each hypothesis is extended by (before the global pruning)."""
