@@ -8,6 +8,10 @@ Modules, one idea each:
 - ``imu_graph``: CombinedImuFactor preintegration between 3-D keyframes (X, V, B keys).
 - ``planar_graph``: the Pose2/Point2 variant: odometry between-factors, or the documented
   gyro-only constant-velocity model.
+- ``planar_odometry``: planar odometry (relative poses, held velocities) composed between
+  keyframes.
+- ``gyro_integration``: the rate gyro integrated between keyframes (``dtheta_m``, ``dt``).
+- ``gyro_motion_factor``: the gyro-only constant-velocity model: residual, covariance, factor.
 - ``odometry_factors``: optional 3-D relative-pose (lidar odometry) factors.
 - ``gps_factors``: GPS fixes on keyframe poses.
 - ``landmark_factors``: body-frame landmark factors (``p = R^T (rho - r)``), anchor priors.
