@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.bags.reader import ReadReport, ReadSettings, read_stream
+from datasets.bags.read_report import ReadReport, ReadSettings
+from datasets.bags.reader import read_stream
 from datasets.lidar.corner_truth import read_corner_truth, score_corners, sidecar_for
 from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd
 from datasets.lidar.kiss_icp_odometry import KissIcpSettings
@@ -82,7 +83,7 @@ def main() -> None:
             f"corner / KISS-ICP time per frame: {100 * corner.mean() / icp.mean():.1f} % (median ratio {100 * np.median(corner / icp):.1f} %)"
         )
 
-        from datasets.bags.reader import read_ground_truth
+        from datasets.bags.ground_truth import read_ground_truth
         from datasets.trajectory import Trajectory
         from workbench.metrics.ate import ate_report
 

@@ -18,7 +18,8 @@ import numpy as np
 
 from datasets.measurements import GyroSample, LandmarkScan, Sensor
 from datasets.sequence import InitialState, NoiseSpec, Sequence
-from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
+from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.filter import SensorBasedSlam
 
 
 def _scene(landmarks: int, d: int, rng: np.random.Generator) -> np.ndarray:

@@ -17,7 +17,8 @@ import numpy as np
 
 from datasets.options import yaml_value
 from datasets.simulation.scenarios import load_scenario
-from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
+from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.filter import SensorBasedSlam
 from workbench.metrics.data_association import landmark_id_mapping
 from workbench.metrics.state_errors import landmark_errors
 from workbench.metrics.summary import compute_metrics

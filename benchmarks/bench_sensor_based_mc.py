@@ -18,7 +18,8 @@ import numpy as np
 
 from datasets.options import yaml_value
 from datasets.simulation.scenarios import load_scenario
-from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
+from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.filter import SensorBasedSlam
 from workbench.metrics.consistency import averaged_nees
 from workbench.metrics.data_association import score_associations
 

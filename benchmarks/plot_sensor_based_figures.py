@@ -26,7 +26,8 @@ import numpy as np  # noqa: E402
 from scipy.stats import chi2  # noqa: E402
 
 from datasets.options import yaml_value  # noqa: E402
-from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam  # noqa: E402
+from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.filter import SensorBasedSlam  # noqa: E402
 from workbench.registry import load_dataset  # noqa: E402
 
 

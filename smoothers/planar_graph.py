@@ -30,25 +30,11 @@ from datasets.state import BlockName, Frame
 from smoothers.covariances import MarginalSource, pose_covariance, vector_covariance
 from smoothers.gyro_integration import GyroAccumulator
 from smoothers.gyro_motion_factor import (
-    constant_velocity_error,
     constant_velocity_factor,
-    motion_factor_covariance,
     predict_constant_velocity,
 )
 from smoothers.planar_odometry import OdometryAccumulator
 from smoothers.priors import InitialPriors
-
-# importable from here, as before the planar model's ideas moved to their own modules
-# (tests import the gyro-only model's pieces from here)
-__all__ = [
-    "GyroAccumulator",
-    "OdometryAccumulator",
-    "PlanarMotion",
-    "constant_velocity_error",
-    "constant_velocity_factor",
-    "motion_factor_covariance",
-    "predict_constant_velocity",
-]
 
 
 class PlanarMotion:

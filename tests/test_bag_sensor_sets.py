@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from datasets.bags.laserscan import MalformedScan, decode_laserscan
-from datasets.bags.reader import ReadReport, ReadSettings, read_stream
+from datasets.bags.read_report import ReadReport, ReadSettings
+from datasets.bags.reader import read_stream
 from datasets.bags.source import load_bag
 from datasets.bags.wheel_odometry import (
     WHEEL_ODOMETRY_NOISE,

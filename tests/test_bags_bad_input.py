@@ -15,7 +15,8 @@ from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 
 from datasets.bags.pointcloud2 import encode_pointcloud2
-from datasets.bags.reader import ReadReport, ReadSettings, read_stream
+from datasets.bags.read_report import ReadReport, ReadSettings
+from datasets.bags.reader import read_stream
 from datasets.bags.source import load_bag
 from datasets.errors import InputError
 from datasets.measurements import ImuSample, PointCloud, Sensor

@@ -8,18 +8,14 @@ import numpy as np
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
+from datasets.bags.bag_file import open_bag
+from datasets.bags.convert import first_gps_origin
 from datasets.bags.gps import geodetic_to_enu
+from datasets.bags.ground_truth import read_ground_truth
 from datasets.bags.pointcloud2 import decode_pointcloud2, encode_pointcloud2
-from datasets.bags.reader import (
-    ReadReport,
-    ReadSettings,
-    discover_topics,
-    first_gps_origin,
-    open_bag,
-    read_ground_truth,
-    read_stream,
-    topic_types,
-)
+from datasets.bags.read_report import ReadReport, ReadSettings
+from datasets.bags.reader import read_stream
+from datasets.bags.topics import discover_topics, topic_types
 from datasets.errors import InputError
 from datasets.measurements import GpsFix, ImuSample, PointCloud
 from datasets.synthetic_lidar import write_lidar_bag

@@ -21,15 +21,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from datasets.bags.reader import (
-    ReadReport,
-    ReadSettings,
-    common_time_base,
-    open_bag,
-    read_ground_truth,
-    read_stream,
-    topic_types,
-)
+from datasets.bags.bag_file import open_bag
+from datasets.bags.ground_truth import read_ground_truth
+from datasets.bags.read_report import ReadReport, ReadSettings
+from datasets.bags.reader import read_stream
+from datasets.bags.time_base import common_time_base
+from datasets.bags.topics import topic_types
 from datasets.errors import InputError
 from datasets.measurements import Odometry, PointCloud
 from datasets.synthetic_lidar import write_lidar_bag

@@ -17,8 +17,9 @@ from datasets.measurements import LandmarkScan, Odometry
 from datasets.utias import load
 from filters.association.hypotheses import _murty, ranked_hypotheses
 from filters.ekf_slam.config import EkfSlamConfig, MultiHypothesisEkfSlamConfig
-from filters.ekf_slam.filter import EkfSlam, planar_odometry_step
+from filters.ekf_slam.filter import EkfSlam
 from filters.ekf_slam.motion import compose_planar
+from filters.ekf_slam.motion_input import planar_odometry_step
 from filters.ekf_slam.multi_hypothesis import MultiHypothesisEkfSlam
 from workbench.metrics.summary import compute_metrics
 from workbench.registry import load_dataset

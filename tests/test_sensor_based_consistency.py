@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 
 from datasets.simulation.scenarios import load_scenario
-from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
+from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.filter import SensorBasedSlam
 from workbench.metrics.consistency import averaged_nees
 
 # a study: the second tier (`pytest -m study`, run by .ci/run after the default tier)

@@ -11,7 +11,8 @@ from datasets.measurements import GyroSample, LandmarkScan
 from datasets.rotations import rot2
 from datasets.simulation.scenarios import load_scenario
 from datasets.state import Frame
-from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
+from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.filter import SensorBasedSlam
 from tests.sensor_based_support import planar_sequence, run
 from workbench.metrics.data_association import score_associations
 
@@ -202,7 +203,8 @@ def test_paper_tuning_is_a_preset_and_reads_conservative_on_the_laser_s_own_nois
     conservative on this motion)."""
     from datasets.errors import InputError
     from filters.sensor_based.config import SensorBasedConfig
-    from filters.sensor_based.filter import SensorBasedSlam, paper_laser_covariances
+    from filters.sensor_based.filter import SensorBasedSlam
+    from filters.sensor_based.scan_association import paper_laser_covariances
     from workbench.registry import load_dataset
 
     sequence = load_dataset("sim:guerreiro-loop", 0, {"duration_s": "10"})

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from datasets.rotations import rot2
+from filters.sensor_based.config import SensorBasedConfig
 from filters.sensor_based.earth_frame import weighted_rigid_alignment
-from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
+from filters.sensor_based.filter import SensorBasedSlam
 from filters.sensor_based.loop_closing import (
     LoopClosurePolicy,
     constraint_update,

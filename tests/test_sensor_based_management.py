@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from datasets.measurements import LandmarkScan
-from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
+from filters.sensor_based.config import SensorBasedConfig
+from filters.sensor_based.filter import SensorBasedSlam
 from filters.sensor_based.landmark_management import LandmarkManager, ManagementPolicy
 from tests.sensor_based_support import planar_sequence, run
 

@@ -12,18 +12,18 @@ from gtsam.symbol_shorthand import L, V, X
 from datasets.measurements import GyroSample
 from datasets.rotations import so3_exp
 from smoothers import imu_graph
+from smoothers.gyro_integration import GyroAccumulator
+from smoothers.gyro_motion_factor import (
+    constant_velocity_error,
+    constant_velocity_factor,
+    motion_factor_covariance,
+    predict_constant_velocity,
+)
 from smoothers.imu_graph import ImuNoise, KeyframeImuIntegrator, combined_params
 from smoothers.landmark_factors import (
     body_point_factor_2d,
     body_point_factor_3d,
     cartesian_point_factor_3d,
-)
-from smoothers.planar_graph import (
-    GyroAccumulator,
-    constant_velocity_error,
-    constant_velocity_factor,
-    motion_factor_covariance,
-    predict_constant_velocity,
 )
 
 

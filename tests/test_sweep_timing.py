@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from datasets.bags.bag_file import iter_messages, open_bag
 from datasets.bags.pointcloud2 import decode_pointcloud2
-from datasets.bags.reader import ReadReport, iter_messages, open_bag
+from datasets.bags.read_report import ReadReport
 from datasets.lidar.sweep_times import (
     CLOCKWISE,
     COUNTERCLOCKWISE,

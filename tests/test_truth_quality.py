@@ -22,13 +22,10 @@ import pytest
 from datasets.errors import InputError
 from datasets.odometry_calibration import Increments
 from datasets.rotations import matrix_from_quat_wxyz, quat_wxyz_from_matrix, so3_exp, wrap_angle
+from datasets.simulation.aghili_rover import ROVER_TERRAIN, ROVER_VIA_POINTS_XY
 from datasets.simulation.assembly import sample_times
-from datasets.simulation.scenarios import (
-    ROVER_TERRAIN,
-    ROVER_VIA_POINTS_XY,
-    guerreiro_loop_motion,
-    relative_pose_odometry,
-)
+from datasets.simulation.guerreiro_motion import guerreiro_loop_motion
+from datasets.simulation.guerreiro_sensors import relative_pose_odometry
 from datasets.simulation.trajectories import TerrainViaPointLoop
 from datasets.state import GroundTruth, StateHistory
 from datasets.trajectory import Trajectory

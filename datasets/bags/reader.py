@@ -1,7 +1,7 @@
 """Reading ROS 1 ``.bag`` files and ROS 2 bags (sqlite3 or mcap) lazily, in stamp order.
 
-The entry point: ``read_stream``, and every name of the modules it is built from,
-re-exported (import them from here or from the module that owns them):
+The entry point: ``read_stream``; every other name is imported from the module that owns
+it:
 - ``datasets.bags.bag_file``: opening a bag of any format through rosbags' ``AnyReader``
   and iterating its messages with their header stamps (integer nanoseconds -> float
   seconds, once, there);
@@ -55,37 +55,14 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.bags.bag_file import STAMP_JUMP_S, iter_messages, open_bag, stamp_seconds
+from datasets.bags.bag_file import iter_messages, open_bag
 from datasets.bags.convert import (
-    MAX_ACCEL_M_S2,
-    MAX_GYRO_RAD_S,
-    UNIT_QUATERNION_TOLERANCE,
     convert,
-    first_gps_origin,
-    pose_of,
 )
-from datasets.bags.ground_truth import MAX_TRUTH_SPEED_M_S, read_ground_truth
 from datasets.bags.message_types import (
-    GROUND_TRUTH_TYPES,
-    IMU,
-    LASERSCAN,
-    NAVSATFIX,
-    ODOMETRY,
     POINTCLOUD2,
-    POSE_STAMPED,
-    POSE_TYPES,
-    POSE_WITH_COVARIANCE_STAMPED,
 )
 from datasets.bags.read_report import ReadReport, ReadSettings, check_skips
-from datasets.bags.spans import (
-    POINT_TIME_SWEEPS,
-    lidar_sweep_period,
-    max_point_time,
-    start_at_first_pose,
-    topic_spans,
-)
-from datasets.bags.time_base import TimeBase, common_time_base
-from datasets.bags.topics import BagTopics, discover_topics, topic_types
 from datasets.errors import InputError
 from datasets.measurements import Measurement
 
@@ -159,42 +136,3 @@ def _check_counts(path: Path, reader, topics: list[str], settings: ReadSettings,
                 f"(damaged bag?); more than max_missing_fraction={settings.max_missing_fraction}"
                 " (raise it to accept)"
             )
-
-
-__all__ = [
-    "GROUND_TRUTH_TYPES",
-    "IMU",
-    "LASERSCAN",
-    "MAX_ACCEL_M_S2",
-    "MAX_GYRO_RAD_S",
-    "MAX_TRUTH_SPEED_M_S",
-    "NAVSATFIX",
-    "ODOMETRY",
-    "POINTCLOUD2",
-    "POINT_TIME_SWEEPS",
-    "POSE_STAMPED",
-    "POSE_TYPES",
-    "POSE_WITH_COVARIANCE_STAMPED",
-    "STAMP_JUMP_S",
-    "UNIT_QUATERNION_TOLERANCE",
-    "BagTopics",
-    "ReadReport",
-    "ReadSettings",
-    "TimeBase",
-    "check_skips",
-    "common_time_base",
-    "convert",
-    "discover_topics",
-    "first_gps_origin",
-    "iter_messages",
-    "lidar_sweep_period",
-    "max_point_time",
-    "open_bag",
-    "pose_of",
-    "read_ground_truth",
-    "read_stream",
-    "start_at_first_pose",
-    "stamp_seconds",
-    "topic_spans",
-    "topic_types",
-]

@@ -28,7 +28,7 @@ World frame and start (``initial_state``, at the start of the common time base):
 - the velocity from the truth, else from the wheel odometry's twist, else zero.
 
 Time base: the common interval of the IMU, the wheel odometry, the 2-D laser and the named
-truth (``datasets.bags.reader.common_time_base``); GPS fixes outside it are dropped and
+truth (``datasets.bags.time_base.common_time_base``); GPS fixes outside it are dropped and
 counted, as for lidar bags.
 """
 
@@ -39,22 +39,15 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.bags.reader import (
-    BagTopics,
-    ReadReport,
-    ReadSettings,
-    TimeBase,
-    check_skips,
-    common_time_base,
-    first_gps_origin,
-    iter_messages,
-    open_bag,
-    read_ground_truth,
-    read_stream,
-    topic_spans,
-    topic_types,
-)
+from datasets.bags.bag_file import iter_messages, open_bag
+from datasets.bags.convert import first_gps_origin
+from datasets.bags.ground_truth import read_ground_truth
+from datasets.bags.read_report import ReadReport, ReadSettings, check_skips
+from datasets.bags.reader import read_stream
+from datasets.bags.spans import topic_spans
+from datasets.bags.time_base import TimeBase, common_time_base
 from datasets.bags.topic_roles import OdometryRole, choose_odometry
+from datasets.bags.topics import BagTopics, topic_types
 from datasets.bags.wheel_odometry import (
     PoseSample,
     WheelIncrements,

@@ -16,7 +16,7 @@ One time base: the streams are trimmed to their common interval, so nothing fail
 one sensor starts earlier (an IMU driver started before the lidar, a truth topic that
 begins late). The interval runs from the latest first stamp to the earliest last stamp of
 the streams the sequence is built from: the lidar (its last sweep counted to its end), the
-IMU when used, and the ground-truth topic when named (``datasets.bags.reader.topic_spans``,
+IMU when used, and the ground-truth topic when named (``datasets.bags.spans.topic_spans``,
 ``common_time_base``). GPS fixes outside it are dropped too, but a sparse GPS topic does not
 narrow it; topics not read (wheel odometry, an unnamed pose topic) play no part. Every
 dropped message is counted in ``metadata["warnings"]`` (``trimmed N x TOPIC at t=..: before
@@ -36,30 +36,17 @@ from pathlib import Path
 import numpy as np
 from pydantic import ConfigDict, Field
 
+from datasets.bags.bag_file import iter_messages, open_bag
+from datasets.bags.convert import MAX_ACCEL_M_S2, MAX_GYRO_RAD_S, first_gps_origin
+from datasets.bags.ground_truth import read_ground_truth
+from datasets.bags.message_types import ODOMETRY, POINTCLOUD2
 from datasets.bags.pointcloud2 import MalformedCloud, decode_pointcloud2
-from datasets.bags.reader import (
-    MAX_ACCEL_M_S2,
-    MAX_GYRO_RAD_S,
-    ODOMETRY,
-    POINTCLOUD2,
-    BagTopics,
-    ReadReport,
-    ReadSettings,
-    check_skips,
-    common_time_base,
-    discover_topics,
-    first_gps_origin,
-    iter_messages,
-    lidar_sweep_period,
-    max_point_time,
-    open_bag,
-    read_ground_truth,
-    read_stream,
-    start_at_first_pose,
-    topic_spans,
-    topic_types,
-)
+from datasets.bags.read_report import ReadReport, ReadSettings, check_skips
+from datasets.bags.reader import read_stream
+from datasets.bags.spans import lidar_sweep_period, max_point_time, start_at_first_pose, topic_spans
+from datasets.bags.time_base import common_time_base
 from datasets.bags.topic_roles import OdometryRole, choose_odometry, named_not_wheel
+from datasets.bags.topics import BagTopics, discover_topics, topic_types
 from datasets.bags.wheel_odometry import PoseSample, WheelIncrements
 from datasets.errors import InputError
 from datasets.laser2d.frontend import Laser2dFrontEndSettings

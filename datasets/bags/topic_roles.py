@@ -31,7 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.bags.reader import ODOMETRY, POSE_TYPES, ReadReport, iter_messages
+from datasets.bags.bag_file import iter_messages
+from datasets.bags.message_types import ODOMETRY, POSE_TYPES
+from datasets.bags.read_report import ReadReport
 from datasets.bags.wheel_odometry import (
     PoseSample,
     WheelNoise,

@@ -124,7 +124,7 @@ def _corner_nees(
 
 def laser2d_scenario(seed: int, options: Laser2dScenarioOptions) -> Sequence:
     """Simulate ``sim:laser2d`` (module docstring) with noise ``seed``."""
-    from datasets.simulation.scenarios import LOOP_PATH_LENGTH_M, guerreiro_loop_motion
+    from datasets.simulation.guerreiro_motion import LOOP_PATH_LENGTH_M, guerreiro_loop_motion
 
     plan: FloorPlan = ring_corridor_building(niche_depth_m=options.niche_depth_m)
     motion = guerreiro_loop_motion(options.mean_speed_m_s)

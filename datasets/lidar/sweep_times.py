@@ -69,7 +69,7 @@ class SweepOptions(BaseModel):
 
 class AzimuthSweep(float):
     """One sweep [s] of a spinning lidar whose clouds are timed by azimuth: the float's own
-    value (what ``datasets.bags.reader.ReadSettings.azimuth_sweep_s`` and ``point_times_for``
+    value (what ``datasets.bags.read_report.ReadSettings.azimuth_sweep_s`` and ``point_times_for``
     expect), with the spin ``direction`` (``CLOCKWISE`` / ``COUNTERCLOCKWISE``), the azimuth
     ``start_deg`` [deg] where a sweep begins and where its ``stamp`` lies. A plain float is
     KITTI raw's sweep (clockwise from behind, stamped facing forward)."""

@@ -12,7 +12,9 @@ changing one sensor's option does not change another sensor's noise.
 Each scenario lives in its own module (``aghili_rover``, ``guerreiro_loop``,
 ``basic_scenarios`` for ``circle`` and ``static``, ``datasets.laser2d.simulation``), on
 shared parts in ``scenario_common`` (options, seeds, noise scale) and ``spatial_scenario``
-(the 3-D scenarios). The names other modules import from here are re-exported.
+(the 3-D scenarios). Import a scenario's options
+and builder from its module; this one owns the registry (``load_scenario``,
+``describe_scenarios``, ``SCENARIO_NAMES``).
 """
 
 from __future__ import annotations
@@ -26,47 +28,14 @@ from datasets.laser2d.simulation import Laser2dScenarioOptions, laser2d_scenario
 from datasets.options import describe_model, parse_options
 from datasets.sequence import Sequence
 from datasets.simulation.aghili_rover import (
-    ROVER_TERRAIN,
-    ROVER_VIA_POINTS_XY,
-    TERRAIN_SIZE_M,
     AghiliRoverOptions,
     aghili_rover,
 )
 from datasets.simulation.basic_scenarios import CircleOptions, StaticOptions, circle, static
 from datasets.simulation.guerreiro_loop import (
-    MOTION_GRID_BYTES,
     GuerreiroLoopOptions,
     guerreiro_loop,
 )
-from datasets.simulation.guerreiro_motion import (
-    LOOP_PATH_LENGTH_M,
-    LOOP_TURN_LENGTH_M,
-    guerreiro_loop_motion,
-)
-from datasets.simulation.guerreiro_sensors import relative_pose_odometry
-
-__all__ = [
-    "LOOP_PATH_LENGTH_M",
-    "LOOP_TURN_LENGTH_M",
-    "MOTION_GRID_BYTES",
-    "ROVER_TERRAIN",
-    "ROVER_VIA_POINTS_XY",
-    "SCENARIO_NAMES",
-    "TERRAIN_SIZE_M",
-    "AghiliRoverOptions",
-    "CircleOptions",
-    "GuerreiroLoopOptions",
-    "StaticOptions",
-    "aghili_rover",
-    "circle",
-    "describe_scenarios",
-    "guerreiro_loop",
-    "guerreiro_loop_motion",
-    "load_scenario",
-    "relative_pose_odometry",
-    "static",
-]
-
 
 _SCENARIOS: dict[str, tuple[type[BaseModel], Callable[[int, BaseModel], Sequence], str]] = {
     "aghili-rover": (

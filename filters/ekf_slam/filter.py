@@ -78,9 +78,6 @@ from filters.ekf_slam.motion_input import (
 )
 from filters.ekf_slam.scan_update import MapPredictor
 
-# the names other modules import from here (tests, benchmarks, workbench.speed)
-__all__ = ["EkfSlam", "MapPredictor", "motion_gap", "planar_odometry_step"]
-
 
 class EkfSlam:
     """World-centric EKF-SLAM (see the module docstring)."""

@@ -86,7 +86,6 @@ from filters.sensor_based.landmark_management import (
 )
 from filters.sensor_based.loop_closing import LoopClosurePolicy, fuse_loop_closures
 from filters.sensor_based.odometry import (
-    ODOMETRY_RATE_BIAS_SIGMA_RAD_S,
     odometry_increment,
     odometry_interval,
     odometry_rate,
@@ -105,19 +104,10 @@ from filters.sensor_based.recording import (
 )
 from filters.sensor_based.scan_association import (
     associate_scan,
-    paper_laser_covariances,
     scan_sightings,
     usable_sightings,
 )
 from filters.sensor_based.update import update_matched
-
-# importable from here, as before the filter's ideas moved to their own modules
-__all__ = [
-    "ODOMETRY_RATE_BIAS_SIGMA_RAD_S",
-    "SensorBasedConfig",
-    "SensorBasedSlam",
-    "paper_laser_covariances",
-]
 
 
 class SensorBasedSlam:

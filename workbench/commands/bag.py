@@ -273,7 +273,7 @@ def _bag_command(
     plot_formats: tuple[str, ...],
     claim: Callable[[], Path],
 ) -> list[dict]:
-    from datasets.bags.reader import open_bag
+    from datasets.bags.bag_file import open_bag
     from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
     from datasets.trajectory_io import write_atomic, write_tum
     from workbench.run_folder import dump_json

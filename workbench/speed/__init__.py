@@ -204,7 +204,8 @@ def sensor_based_step_ms(landmarks: int, steps: int = 40) -> float:
     """The sensor-based filter (2-D, ids) with ``landmarks`` in state: one 0.1 s step = a
     gyro prediction (two 0.05 s sub-steps, eq. (10)) and a scan of ``SCAN_LANDMARKS``
     landmarks (association, update, management, Earth frame) [ms]."""
-    from filters.sensor_based.filter import SensorBasedConfig, SensorBasedSlam
+    from filters.sensor_based.config import SensorBasedConfig
+    from filters.sensor_based.filter import SensorBasedSlam
 
     rng = np.random.default_rng(0)
     radius = rng.uniform(2.0, 15.0, landmarks)
