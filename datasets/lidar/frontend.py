@@ -180,6 +180,8 @@ class LidarFrontEnd:
             settings.kiss.rotation_sigma_rad, settings.kiss.translation_sigma_m
         )
         self.settling = MotionSettling()
+        if settings.odometry:  # the warm-up's state, as the report shows it
+            self.report.settling = self.settling
         self._gyro = GyroBuffer()
         self.imu_deskewed_frames = 0
         self.imu_fallback_stamps: list[float] = []  # imu_deskew frames the IMU did not cover
@@ -288,6 +290,8 @@ class LidarFrontEnd:
             time.perf_counter() - icp_done + selected - started,
         )
         self.frames.append(result)
+        if odometry is not None:
+            self.report.increment_noise = self.increment_noise.current
         self.report.add_frame(
             t,
             pose,

@@ -24,6 +24,8 @@ from datasets.trajectory import Trajectory, trajectory_from_homogeneous
 
 if TYPE_CHECKING:
     from datasets.lidar.corner_tracking import ReobservationStats
+    from datasets.lidar.increment_noise import IncrementNoise
+    from datasets.lidar.motion_settling import MotionSettling
 
 
 @dataclass
@@ -47,6 +49,12 @@ class FrontEndReport:
         untimed_frames: clouds without per-point times (read as motion-compensated).
         reobservation: the corner tracker's re-observation statistics (the corners' NIS
             against KISS-ICP's poses, ``datasets.lidar.corner_tracking``), or None.
+        increment_noise: the covariance of KISS-ICP's increments in use at the last frame
+            and the fit behind it (``datasets.lidar.increment_noise``), or None before a
+            frame or without odometry.
+        settling: KISS-ICP's warm-up (``datasets.lidar.motion_settling``: when the corners
+            accepted its increments, how many were inflated before), or None without
+            odometry.
     """
 
     name: str = "kiss-icp"
@@ -60,6 +68,8 @@ class FrontEndReport:
     corners_emitted: int = 0
     untimed_frames: int = 0
     reobservation: ReobservationStats | None = None
+    increment_noise: IncrementNoise | None = None
+    settling: MotionSettling | None = None
 
     def add_frame(
         self,

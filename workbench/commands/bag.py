@@ -102,6 +102,7 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
     )
 
     front_end = source.front_end
+    report = sequence.front_end  # the typed report (datasets.lidar.frontend_report)
     frames = front_end.frames
     # over the first frames only: a constant yaw-rate error is a model for a short span, and
     # the fit's corner clustering grows with the square of the pairs (LidarFrontEnd)
@@ -132,13 +133,13 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
         "topics": sequence.metadata.get("topics"),
         # corners found again where they were (KISS-ICP's poses), and how far they moved
         # against their covariances (datasets.lidar.corner_tracking)
-        **front_end.tracker.stats.summary(),
+        **(report.reobservation.summary() if report.reobservation is not None else {}),
         # the covariance of KISS-ICP's increments at the last frame, and the fit behind it
         # (datasets.lidar.increment_noise)
-        **front_end.increment_noise.current.summary(),
+        **(report.increment_noise.summary() if report.increment_noise is not None else {}),
         # when KISS-ICP's motion had settled by the corners, and how many increments (and
         # their corners) were inflated before (datasets.lidar.motion_settling)
-        **front_end.settling.summary(),
+        **(report.settling.summary() if report.settling is not None else {}),
         # the constant yaw-rate error of KISS-ICP that the corners imply [deg/s] over the
         # first HEADING_CHECK_FRAMES frames, and its standard error (jackknife over corners):
         # a disagreement, which either side may cause (datasets.lidar.increment_noise)
@@ -347,8 +348,9 @@ def _bag_command(
                 f"{resolved['imu_deskew_fallback_frames']} fell back to KISS-ICP's)"
             )
         typer.echo(f"front end: deskew: {deskew}", err=True)
-    if source.front_end.settings.odometry:
-        noise = source.front_end.increment_noise.current
+    report = sequence.front_end
+    if report.increment_noise is not None and report.settling is not None:
+        noise = report.increment_noise
         fitted = (
             ""
             if noise.estimate is None
@@ -361,7 +363,7 @@ def _bag_command(
             f"({noise.source}{fitted})",
             err=True,
         )
-        settling = source.front_end.settling
+        settling = report.settling
         if settling.settled_frame is not None:
             typer.echo(
                 f"front end: KISS-ICP settled by the corners at frame {settling.settled_frame} "
