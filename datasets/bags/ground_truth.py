@@ -23,40 +23,42 @@ recorded on; a faster step is a corrupted pose."""
 
 
 def read_ground_truth(
-    path: Path, topic: str, report: ReadReport
+    path: Path, topic: str, report: ReadReport, reader=None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All poses of a ground-truth topic: t (N,), positions (N, 3), quaternions wxyz (N, 4),
     stamp-ordered; backwards, non-finite or implausible poses (module docstring) skipped and
-    counted."""
+    counted. ``reader``: the bag already open (``open_bag``), else it is opened here."""
+    if reader is None:
+        with open_bag(path) as opened:
+            return read_ground_truth(path, topic, report, opened)
     times, positions, quats = [], [], []
-    with open_bag(path) as reader:
-        for _, msgtype, stamp, message in iter_messages(reader, path, [topic], report=report):
-            position, quat = pose_of(message, msgtype)
-            with np.errstate(over="ignore"):  # a corrupted 1e300 overflows to inf: skipped
-                norm = np.linalg.norm(quat)
-            if not (np.all(np.isfinite(position)) and np.isfinite(norm) and norm > 1e-9):
-                report.skip(topic, "non-finite pose", stamp)
-                continue
-            if times and stamp <= times[-1]:
-                report.skip(topic, "stamp not after the previous one", stamp)
-                continue
-            if abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE:
-                report.skip(topic, "orientation not a unit quaternion", stamp, f"norm {norm:.6g}")
-                continue
-            if np.max(np.abs(position)) > MAX_POSITION_M:
-                report.skip(topic, f"position beyond {MAX_POSITION_M:g} m", stamp)
-                continue
-            with np.errstate(over="ignore"):
-                step_m = float(np.linalg.norm(position - positions[-1])) if times else 0.0
-            if times and step_m > MAX_TRUTH_SPEED_M_S * (stamp - times[-1]):
-                report.skip(
-                    topic,
-                    f"pose jumps faster than {MAX_TRUTH_SPEED_M_S:g} m/s",
-                    stamp,
-                    f"{step_m:.3g} m in {stamp - times[-1]:.3g} s",
-                )
-                continue
-            times.append(stamp)
-            positions.append(position)
-            quats.append(quat / norm)
+    for _, msgtype, stamp, message in iter_messages(reader, path, [topic], report=report):
+        position, quat = pose_of(message, msgtype)
+        with np.errstate(over="ignore"):  # a corrupted 1e300 overflows to inf: skipped
+            norm = np.linalg.norm(quat)
+        if not (np.all(np.isfinite(position)) and np.isfinite(norm) and norm > 1e-9):
+            report.skip(topic, "non-finite pose", stamp)
+            continue
+        if times and stamp <= times[-1]:
+            report.skip(topic, "stamp not after the previous one", stamp)
+            continue
+        if abs(norm - 1.0) > UNIT_QUATERNION_TOLERANCE:
+            report.skip(topic, "orientation not a unit quaternion", stamp, f"norm {norm:.6g}")
+            continue
+        if np.max(np.abs(position)) > MAX_POSITION_M:
+            report.skip(topic, f"position beyond {MAX_POSITION_M:g} m", stamp)
+            continue
+        with np.errstate(over="ignore"):
+            step_m = float(np.linalg.norm(position - positions[-1])) if times else 0.0
+        if times and step_m > MAX_TRUTH_SPEED_M_S * (stamp - times[-1]):
+            report.skip(
+                topic,
+                f"pose jumps faster than {MAX_TRUTH_SPEED_M_S:g} m/s",
+                stamp,
+                f"{step_m:.3g} m in {stamp - times[-1]:.3g} s",
+            )
+            continue
+        times.append(stamp)
+        positions.append(position)
+        quats.append(quat / norm)
     return np.array(times), np.array(positions).reshape(-1, 3), np.array(quats).reshape(-1, 4)

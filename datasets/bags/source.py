@@ -202,9 +202,12 @@ def nest_dotted(options: dict[str, str]) -> dict[str, object]:
 class LidarSource:
     """A bag or scan folder with its front end; remembers what the last pass skipped."""
 
-    def __init__(self, front_end: LidarFrontEnd) -> None:
+    def __init__(self, front_end: LidarFrontEnd, lidar_messages: int | None = None) -> None:
+        """``lidar_messages``: the clouds the bag's index lists on its lidar topic (for a
+        progress bar; None where unknown)."""
         self.front_end = front_end
         self.report = ReadReport()
+        self.lidar_messages = lidar_messages
 
     def record_warnings(self, warnings: list[str]) -> None:
         """Add the last pass's skips and the front end's heading, warm-up and IMU deskew
@@ -360,23 +363,23 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             azimuth_sweep_s,
             max_point_time_s,
         )
-    load_report = ReadReport()
-    gt = (
-        read_ground_truth(path, topics.ground_truth, load_report)
-        if topics.ground_truth
-        else (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
-    )
-    if topics.ground_truth:
-        check_skips(path, [topics.ground_truth], settings.max_skipped_fraction, load_report)
-        if len(gt[0]) < 2:
-            raise InputError(
-                f"{path}: ground-truth topic {topics.ground_truth} has {len(gt[0])} usable poses"
-            )
-    if topics.ground_truth:
-        spans[topics.ground_truth] = (float(gt[0][0]), float(gt[0][-1]))
-    time_base = common_time_base(path, spans)  # module docstring: one time base
-    if time_base is not None and settings.odometry:
-        with open_bag(path) as reader:
+        lidar_messages = int(reader.topics[topics.lidar].msgcount)
+        load_report = ReadReport()
+        gt = (
+            read_ground_truth(path, topics.ground_truth, load_report, reader)
+            if topics.ground_truth
+            else (np.zeros(0), np.zeros((0, 3)), np.zeros((0, 4)))
+        )
+        if topics.ground_truth:
+            check_skips(path, [topics.ground_truth], settings.max_skipped_fraction, load_report)
+            if len(gt[0]) < 2:
+                raise InputError(
+                    f"{path}: ground-truth topic {topics.ground_truth} has {len(gt[0])} "
+                    "usable poses"
+                )
+            spans[topics.ground_truth] = (float(gt[0][0]), float(gt[0][-1]))
+        time_base = common_time_base(path, spans)  # module docstring: one time base
+        if time_base is not None and settings.odometry:
             time_base = start_at_first_pose(
                 reader,
                 path,
@@ -410,7 +413,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         # with an IMU the estimators may move by it instead of the front end's increments
         sole_motion_input=imu_topic is None,
     )
-    source = LidarSource(front_end)
+    source = LidarSource(front_end, lidar_messages)
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic, wheel.topic) if topic]
 
     resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used

@@ -274,7 +274,6 @@ def _bag_command(
     plot_formats: tuple[str, ...],
     claim: Callable[[], Path],
 ) -> list[dict]:
-    from datasets.bags.bag_file import open_bag
     from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
     from datasets.trajectory_io import write_atomic, write_tum
     from workbench.run_folder import dump_json
@@ -289,9 +288,8 @@ def _bag_command(
             options[key] = value
     settings = build_model(BagOptions, nest_dotted(options), f"bag:{path}")
     sequence, source = bag_sequence(str(path), settings)
-    lidar_topic = sequence.metadata["topics"]["lidar"]
-    with open_bag(path) as reader:
-        lidar_messages = int(reader.topics[lidar_topic].msgcount) if lidar_topic else 0
+    # the bag's index, read when it was opened to load (not opened again for it)
+    lidar_messages = getattr(source, "lidar_messages", None) or 0
     if settings.max_frames:
         lidar_messages = min(lidar_messages, settings.max_frames)
     names = choose_estimators(estimators, sequence)
