@@ -61,52 +61,6 @@ def test_anchoring_on_the_earth_map_removes_the_drift_of_composed_increments() -
     assert rms(composed[:, last]) > 2.0 * rms(anchored[:, last])
 
 
-def test_joint_alignment_discounts_landmarks_that_share_one_error() -> None:
-    """Six landmarks out of view share one error (their body-frame positions turned together
-    by 0.05 rad about the body, as a heading error of the vehicle carries them) and two in
-    view are right. Weighed one by one the six outvote the two; the generalised least-squares
-    alignment with their joint covariance (the shared part as a rank-one term) follows the
-    two (measured: yaw 0.0003 against 0.0052 rad, position 0.0025 against 0.019 m), and its
-    covariance gains reproduce the pose's change to first order."""
-    from filters.sensor_based.earth_frame import joint_alignment, weighted_rigid_alignment
-    from filters.sensor_based.earth_pose_covariance import joint_alignment_gains
-
-    earth = np.array(
-        [[4.0, 1.0], [3.0, -2.0], [-4.0, 3.0], [-5.0, -1.0], [-2.0, -5.0], [1.0, 6.0],
-         [-6.0, 2.0], [0.5, -6.0]]
-    )  # fmt: skip
-    body = earth.copy()  # the vehicle at the Earth origin, heading 0
-    body[2:] = body[2:] @ rot2(0.05).T  # the six out of view share one turn
-    count = len(earth)
-    lever = np.zeros((2 * count, 1))
-    lever[4:, 0] = (body[2:] @ np.array([[0.0, 1.0], [-1.0, 0.0]])).ravel()  # J s per row
-    shared = 0.05**2 * lever @ lever.T  # their common heading error, rank one
-    joint = np.eye(2 * count) * 0.01**2 + shared
-    joint[:4, :4] = np.eye(4) * 0.01**2
-    weights = 1.0 / np.einsum("aiai->a", joint.reshape(count, 2, count, 2))
-    rotation, position = weighted_rigid_alignment(body, earth, weights)
-    weight = np.linalg.inv(joint)
-    joint_rotation, joint_position = joint_alignment(rotation, position, body, earth, weight)
-
-    def yaw(matrix: np.ndarray) -> float:
-        return float(np.arctan2(matrix[1, 0], matrix[0, 0]))
-
-    assert abs(yaw(rotation)) > 0.004  # pulled by the six: a tenth of their shared turn
-    assert abs(yaw(joint_rotation)) < 0.2 * abs(yaw(rotation))
-    assert np.linalg.norm(joint_position) < 0.2 * np.linalg.norm(position)
-    # the gains: where the maps agree, moving the Earth entries by dy moves the pose by
-    # sum_i A_i dy_i to first order (with residuals left, Gauss-Newton's gains leave out their
-    # curvature term, as alignment_gains does)
-    gains = joint_alignment_gains(np.eye(2), earth, weight)
-    dy = np.random.default_rng(3).normal(0.0, 1e-6, earth.shape)
-    moved_rotation, moved_position = joint_alignment(
-        np.eye(2), np.zeros(2), earth, earth + dy, weight
-    )
-    predicted = np.einsum("nkd,nd->k", gains, dy)
-    np.testing.assert_allclose(moved_position, predicted[:2], atol=1e-11)
-    assert yaw(moved_rotation) == pytest.approx(predicted[2], abs=1e-11)
-
-
 def test_landmarks_not_yet_confirmed_neither_enter_the_earth_map_nor_move_the_pose() -> None:
     """A landmark below the management's sighting count may be a duplicate whose position
     has been dead-reckoned since its one sighting (on the real KITTI clip one such pair

@@ -34,19 +34,14 @@ long the way round was. Measured on UTIAS MRCLAM dataset 1 (sensor-based with od
 ids, the camera's field of view), SE(2)-aligned ATE of robots 1-5 with increments only /
 anchored: 0.65 / 0.14, 0.68 / 0.19, 0.29 / 0.16, 0.42 / 0.16, 0.97 / 0.24 m.
 
-In the plane the anchoring alignment is a generalised least-squares one (``joint_alignment``,
-our extension): its weight is the inverse of the residuals' joint covariance, the filter's
-joint covariance of the body-frame positions (turned into Earth axes) plus each Earth
-entry's own. The robocentric map's errors share the vehicle's motion error: weighed one by
-one (``1 / trace`` each, as before), the landmarks out of view, carried by the filter's
-motion model until seen again, count as that many independent witnesses of one drift and
-pull the pose with them. On UTIAS MRCLAM dataset 1 with ids every scan from minute 3 on
-anchors on all 15 landmarks, and robot 2's error sat in three such minutes. SE(2)-aligned
-ATE of robots 1-5, per-landmark weights / joint: 0.124 / 0.115, 0.119 / 0.103, 0.082 /
-0.075, 0.201 / 0.116, 0.108 / 0.103 m (``workbench run sensor-based
-utias:...#robotN --data ids=true``). The anchored pose's covariance uses the matching gains
-(``earth_pose_covariance.joint_alignment_gains``). In 3-D the per-landmark weights stay
-(the 3-D pose carries no covariance yet, ``earth_pose_covariance``).
+Tried and not kept: anchoring by generalised least squares, weighted by the inverse of the
+body-frame map's joint covariance (the landmarks out of view share the vehicle's motion
+error, which the per-landmark weights below ignore). On UTIAS dataset 1 with ids it lowered
+the SE(2) ATE of robots 1-5 from 0.124 / 0.119 / 0.082 / 0.201 / 0.108 to 0.115 / 0.103 /
+0.075 / 0.116 / 0.103 m, but on the MIT CSAIL laser log (99 landmarks, most out of view) the
+trajectory jumped and the scans drawn through it were less consistent than with these
+weights (its distance from the batch smoother 22.6 -> 54.6 m at most): a default must hold on
+both.
 
 An anchor needs ``ANCHOR_MIN_LANDMARKS`` = 3 Earth-map landmarks. Two fix a planar pose
 exactly, with nothing left over to check it against, and a short pair fixes the heading
@@ -79,7 +74,6 @@ from scipy.linalg import block_diag
 from filters.sensor_based.earth_pose_covariance import (
     EarthErrorCovariance,
     alignment_gains,
-    joint_alignment_gains,
     pose_dimension,
 )
 
@@ -107,50 +101,6 @@ def weighted_rigid_alignment(
     fix[-1, -1] = np.sign(np.linalg.det(u @ vt)) or 1.0
     rotation = u @ fix @ vt
     return rotation, mean_target - rotation @ mean_source
-
-
-JOINT_ALIGNMENT_ITERATIONS = 3
-"""Gauss-Newton steps of ``joint_alignment`` from the weighted solution (the second and third
-change the pose by less than 1e-9 m on UTIAS)."""
-
-_TURN = np.array([[0.0, -1.0], [1.0, 0.0]])
-
-
-def _rot2(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s], [s, c]])
-
-
-def joint_alignment(
-    rotation: np.ndarray,
-    position: np.ndarray,
-    body_positions: np.ndarray,
-    earth_positions: np.ndarray,
-    weight: np.ndarray,
-    iterations: int = JOINT_ALIGNMENT_ITERATIONS,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The planar pose ``(R, p)`` minimising ``r^T W r``, ``r_i = R s_i + p - y_i`` stacked
-    (n d,), by Gauss-Newton from ``(rotation, position)`` (the per-landmark weighted solution):
-    a generalised least-squares alignment whose ``W`` (n d, n d) carries the correlation of
-    the body-frame positions (``EarthFrameTracker`` module docstring, anchoring). Steps in
-    ``[dp, dphi]`` about the world origin, as ``joint_alignment_gains`` perturbs.
-
-    Args:
-        rotation: (2, 2); position: (2,) [m]; body_positions, earth_positions: (n, 2) [m];
-            weight: (2 n, 2 n).
-    """
-    rotation = np.array(rotation, dtype=float)
-    position = np.array(position, dtype=float)
-    for _ in range(iterations):
-        turned = body_positions @ rotation.T
-        residual = (turned + position - earth_positions).ravel()
-        design = np.concatenate(
-            [np.broadcast_to(np.eye(2), (len(turned), 2, 2)), (turned @ _TURN.T)[:, :, None]], 2
-        ).reshape(-1, 3)
-        step = np.linalg.solve(design.T @ weight @ design, -design.T @ weight @ residual)
-        position = position + step[:2]
-        rotation = _rot2(step[2]) @ rotation
-    return rotation, position
 
 
 PLANAR_VARIANCE_RATIO = 10.0
@@ -334,27 +284,10 @@ class EarthFrameTracker:
         if anchored is not None:
             self.rotation, self.position, common, weights = anchored
             self.anchored_steps += 1
-            gains = None
-            if self.dimension == 2:
-                # the robocentric map's errors share the vehicle's motion error: weighed one
-                # by one, a dozen landmarks out of view would count as a dozen independent
-                # witnesses of one drift (module docstring, anchoring)
-                body_joint = joint_covariance(np.asarray(common))
-                weight = self._joint_weight([keys[k] for k in common], self.rotation, body_joint)
-                self.rotation, self.position = joint_alignment(
-                    self.rotation,
-                    self.position,
-                    positions[common],
-                    np.stack([self.earth_map[keys[k]].position for k in common]),
-                    weight,
-                )
-                gains = joint_alignment_gains(self.rotation, positions[common], weight)
             if self.errors is not None:
                 self.errors.anchor(
                     [keys[k] for k in common],
-                    alignment_gains(self.rotation, positions[common], weights)
-                    if gains is None
-                    else gains,
+                    alignment_gains(self.rotation, positions[common], weights),
                     self.rotation,
                     joint_covariance(np.asarray(common)),
                 )
@@ -425,19 +358,6 @@ class EarthFrameTracker:
         else:
             rotation, position = weighted_rigid_alignment(positions[common], earth, weights)
         return rotation, position, common, weights
-
-    def _joint_weight(
-        self, keys: list[int], rotation: np.ndarray, body_joint: np.ndarray
-    ) -> np.ndarray:
-        """``W`` (n d, n d) of the planar anchoring: the inverse of the residuals' covariance,
-        the body-frame positions' joint covariance turned into Earth axes (``R C R^T`` per
-        block) plus each Earth entry's own (isotropic, its entry weight's trace)."""
-        count, d = len(keys), self.dimension
-        turned = np.einsum(
-            "ij,ajbk,lk->aibl", rotation, body_joint.reshape(count, d, count, d), rotation
-        ).reshape(count * d, count * d)
-        entries = np.repeat([1.0 / (d * self.earth_map[key].weight) for key in keys], d)
-        return np.linalg.inv(turned + np.diag(entries))
 
     def forget(self, landmark_id: int) -> None:
         """Drop a landmark from the Earth map (merged into another by a loop closure)."""

@@ -188,26 +188,6 @@ def alignment_gains(
     return weights[:, None, None] * np.einsum("ij,nkj->nik", np.linalg.inv(information), design)
 
 
-def joint_alignment_gains(
-    rotation: np.ndarray, body_positions: np.ndarray, weight: np.ndarray
-) -> np.ndarray:
-    """``A_i`` (n, k, d) of an anchoring alignment by generalised least squares, the pose
-    minimising ``r^T W r`` over the stacked residuals ``r_i = R s_i + p - y_i`` with a full
-    weight matrix ``W`` (n d, n d) (``earth_frame.joint_alignment``): with the stacked
-    ``H = [H_1; ...; H_n]`` of ``alignment_gains``, ``dx = (H^T W H)^-1 H^T W (dy - R ds)``,
-    exact to first order for any ``W``, as there.
-
-    Args:
-        rotation: (d, d) the anchored body-to-Earth rotation ``R``.
-        body_positions: (n, d) ``s_i`` [m]; weight: (n d, n d) ``W``.
-    """
-    count, dimension = np.shape(body_positions)
-    design = _rigid_lever(body_positions @ rotation.T, np.zeros(dimension))  # (n, d, k)
-    stacked = design.reshape(count * dimension, -1)
-    gain = np.linalg.solve(stacked.T @ weight @ stacked, stacked.T @ weight)  # (k, n d)
-    return gain.reshape(-1, count, dimension).transpose(1, 0, 2)
-
-
 class EarthErrorCovariance:
     """Joint first-order covariance of the Earth pose's error ``[dp, dphi]`` (world
     coordinates) and of every Earth-map entry's position error (module docstring).
