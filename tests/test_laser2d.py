@@ -222,5 +222,4 @@ def test_batch_smoother_relations_on_simulated_scans_are_within_its_covariance()
     # 1e-9 in test_relations; here it scores what this test judges)
     np.testing.assert_allclose(scored.translation_errors_m, translation, atol=1e-9)
     dof = 3 * len(pairs)
-    print(f"relations NEES per dof {np.sum(nees) / dof:.3f} over {dof} dof")
     assert np.sum(nees) / dof < chi2.ppf(0.995, dof) / dof, np.sum(nees) / dof

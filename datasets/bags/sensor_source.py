@@ -72,9 +72,11 @@ GPS_COURSE_WINDOW_S = 120.0
 
 class SensorSource:
     """What a pass over a bag without lidar skipped (``report``), and the 2-D laser front
-    end when its scans are used (else None); ``front_end`` is None (no lidar front end)."""
+    end when its scans are used (else None); ``front_end`` is None (no lidar front end) and
+    ``lidar_messages`` None (no lidar topic), as ``LidarSource`` names them."""
 
     front_end = None
+    lidar_messages = None
 
     def __init__(self, laser_front_end: Laser2dFrontEnd | None = None) -> None:
         self.laser_front_end = laser_front_end

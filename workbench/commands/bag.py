@@ -289,7 +289,7 @@ def _bag_command(
     settings = build_model(BagOptions, nest_dotted(options), f"bag:{path}")
     sequence, source = bag_sequence(str(path), settings)
     # the bag's index, read when it was opened to load (not opened again for it)
-    lidar_messages = getattr(source, "lidar_messages", None) or 0
+    lidar_messages = source.lidar_messages or 0
     if settings.max_frames:
         lidar_messages = min(lidar_messages, settings.max_frames)
     names = choose_estimators(estimators, sequence)
