@@ -45,7 +45,7 @@ from datasets.bags.read_report import ReadReport, ReadSettings, check_skips
 from datasets.bags.reader import read_stream
 from datasets.bags.spans import lidar_sweep_period, max_point_time, start_at_first_pose, topic_spans
 from datasets.bags.time_base import common_time_base
-from datasets.bags.topic_roles import OdometryRole, choose_odometry, named_not_wheel
+from datasets.bags.topic_roles import OdometryRole, choose_odometry, not_wheel_words
 from datasets.bags.topics import BagTopics, discover_topics, topic_types
 from datasets.bags.wheel_odometry import PoseSample, WheelIncrements
 from datasets.errors import InputError
@@ -527,7 +527,7 @@ def _other_inputs(
             topic
             for topic, msgtype in sorted(types.items())
             # a topic named as truth or an estimate would never be the wheel odometry
-            if msgtype == ODOMETRY and topic != topics.ground_truth and not named_not_wheel(topic)
+            if msgtype == ODOMETRY and topic != topics.ground_truth and not not_wheel_words(topic)
         ]
         if listed:
             why = (

@@ -120,7 +120,7 @@ class PoseTopicEvidence:
             return f"{self.messages} message(s)"
         if self.global_frame():
             return f"global frame '{self.frame_id}'"
-        said = sorted(self.words() & set(NOT_WHEEL_WORDS))  # named_not_wheel, with the words
+        said = not_wheel_words(self.topic)
         if said:
             return f"its name says an estimator's output or an absolute source ({', '.join(said)})"
         if self.jumps:
@@ -168,9 +168,10 @@ def topic_words(topic: str) -> set[str]:
     return {word for word in re.split(r"[/_\-.]+", topic.lower()) if word}
 
 
-def named_not_wheel(topic: str) -> bool:
-    """Whether a topic's name alone rules it out as wheel odometry (``NOT_WHEEL_WORDS``)."""
-    return bool(topic_words(topic) & set(NOT_WHEEL_WORDS))
+def not_wheel_words(topic: str) -> list[str]:
+    """The words of a topic's name that rule it out as wheel odometry (``NOT_WHEEL_WORDS``),
+    sorted; empty when its name allows it."""
+    return sorted(topic_words(topic) & set(NOT_WHEEL_WORDS))
 
 
 def _covariance_kind(covariance: np.ndarray | None) -> str:
