@@ -36,6 +36,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import gtsam
 import numpy as np
@@ -192,6 +193,10 @@ class _Incremental:
     def _isam(self) -> gtsam.ISAM2:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def _solver(self):  # pragma: no cover - abstract
+        """What answers ``calculateEstimate*`` (iSAM2, or the fixed-lag smoother)."""
+        raise NotImplementedError
+
     def _held_slots(self) -> int:  # pragma: no cover - abstract
         raise NotImplementedError
 
@@ -234,19 +239,35 @@ class _Incremental:
         self.gtsam_seconds += elapsed
         return elapsed
 
-    def joint(self, keys: Sequence[int], t: float = float("nan")) -> JointMarginals:
-        """One batched joint marginal query over ``keys`` (at time ``t`` [s], for errors)."""
+    def _query(self, ask: Callable[[], Any], t: float, context: str) -> Any:
+        """``ask()`` of the solver, with the QR fallback when Cholesky fails on it; any other
+        GTSAM failure as the ``InputError`` of ``explain`` (``t`` [s]: for errors)."""
         try:
-            return JointMarginals.query(self._isam(), keys)
+            return ask()
         except RuntimeError as error:
-            self._fall_back(error, t, "joint marginal covariance")
+            self._fall_back(error, t, context)
         try:
             self._rebuild(self._held_slots(), gtsam.Values())
-            return JointMarginals.query(self._isam(), keys)
+            return ask()
         except RuntimeError as again:
-            raise explain(
-                again, t, "joint marginal covariance (QR after Cholesky failed)"
-            ) from None
+            raise explain(again, t, f"{context} (QR after Cholesky failed)") from None
+
+    def joint(self, keys: Sequence[int], t: float = float("nan")) -> JointMarginals:
+        """One batched joint marginal query over ``keys`` (at time ``t`` [s], for errors)."""
+        return self._query(
+            lambda: JointMarginals.query(self._isam(), keys), t, "joint marginal covariance"
+        )
+
+    def values(self, keys: list[int], t: float = float("nan")) -> gtsam.Values:
+        """The current estimate of ``keys`` (``fetch_values``; back-substitution can meet an
+        indeterminate system too: a diverged window)."""
+        return self._query(
+            lambda: fetch_values(self._solver(), keys, self.dimension), t, "estimate"
+        )
+
+    def estimate(self) -> gtsam.Values:
+        """The current estimate of every variable."""
+        return self._query(lambda: self._solver().calculateEstimate(), float("nan"), "estimate")
 
 
 class Isam2Backend(_Incremental):
@@ -290,11 +311,8 @@ class Isam2Backend(_Incremental):
     def _isam(self) -> gtsam.ISAM2:
         return self.isam
 
-    def estimate(self) -> gtsam.Values:
-        return self.isam.calculateEstimate()
-
-    def values(self, keys: list[int]) -> gtsam.Values:
-        return fetch_values(self.isam, keys, self.dimension)
+    def _solver(self) -> gtsam.ISAM2:
+        return self.isam
 
     def leaving(self, t_new: float) -> list[int]:
         """Keys about to be marginalised by an update at ``t_new``: none for iSAM2."""
@@ -364,11 +382,8 @@ class FixedLagBackend(_Incremental):
     def _isam(self) -> gtsam.ISAM2:
         return self.smoother.getISAM2()
 
-    def estimate(self) -> gtsam.Values:
-        return self.smoother.calculateEstimate()
-
-    def values(self, keys: list[int]) -> gtsam.Values:
-        return fetch_values(self.smoother, keys, self.dimension)
+    def _solver(self) -> gtsam.IncrementalFixedLagSmoother:
+        return self.smoother
 
     def leaving(self, t_new: float) -> list[int]:
         """Keys an update whose latest time is ``t_new`` [s, wall] will marginalise (clock

@@ -12,6 +12,12 @@ import math
 from datasets.errors import InputError
 
 
+class IndeterminateSystem(InputError):
+    """GTSAM found the linear system indeterminate (``explain``): at the first solve, a state
+    nothing constrains (an input problem); mid-run, after the same graph solved before, a
+    numerical failure of the solver (``KeyframeSmoother`` stops the run there)."""
+
+
 def gtsam_message(error: BaseException) -> str:
     """GTSAM's whole message on one line (the exception's type when it has none)."""
     text = " ".join(line.strip() for line in str(error).strip().splitlines() if line.strip())
@@ -31,7 +37,7 @@ def explain(error: BaseException, t: float, context: str) -> InputError:
     message = gtsam_message(error)
     where = f"{context} at t={t:.6f} s" if math.isfinite(t) else context
     if is_indeterminate(error):
-        return InputError(
+        return IndeterminateSystem(
             f"{where}: the system is indeterminate (some state is not constrained: no prior, "
             f"anchors, GPS or enough landmarks reach it) -- GTSAM: {message}"
         )

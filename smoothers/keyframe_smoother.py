@@ -50,6 +50,7 @@ from filters.association import AssociationPolicy
 from smoothers.backends import FixedLagBackend, Isam2Backend
 from smoothers.config import SmootherConfig
 from smoothers.gps_factors import gps_factor
+from smoothers.gtsam_errors import IndeterminateSystem
 from smoothers.joint_marginals import JointMarginals, JointQuery
 from smoothers.landmark_book import MapLandmark, anchor_landmarks
 from smoothers.landmark_scans import LandmarkScans
@@ -142,6 +143,10 @@ class KeyframeSmoother:
             self.scans.add_anchor(map_id, position, self.start.t)
         self.start_values = gtsam.Values(self.pending.values)
         self._fallback_reported = False
+        self._solved = False  # a first update went through (``_stop``)
+        # the solver's failure mid-run: (time [s], message); None while it holds
+        self.stopped: tuple[float, str] | None = None
+        self.dropped_after_stop = 0
 
     @property
     def landmarks(self) -> dict[int, MapLandmark]:
@@ -166,6 +171,9 @@ class KeyframeSmoother:
     def process(self, measurement: Measurement) -> None:
         t = float(measurement.t)
         self.clock.advance(t, type(measurement).__name__)
+        if self.stopped is not None:
+            self.dropped_after_stop += 1
+            return
         if self.group is not None and t > self.group.t:
             if self.motion.accepts(measurement):
                 self.motion.look_ahead(measurement)
@@ -244,16 +252,38 @@ class KeyframeSmoother:
                 self.odometry_3d.start()
         for fix in group.fixes:
             self.pending.add(gps_factor(self.motion.pose_key(k), fix, self.dimension))
-        if group.scans:
-            if any(self.scans.needs_prediction(scan) for scan in group.scans):
-                # The prediction: this keyframe's motion (and GPS) factors solved first.
-                self._solve_pending(t)
-            pose = self.motion.pose_of(self._current_values(), k)
-            for scan in group.scans:
-                self.scans.add(scan, k, self.motion.pose_key(k), pose)
-        self._update(t)
+        try:
+            if group.scans:
+                if any(self.scans.needs_prediction(scan) for scan in group.scans):
+                    # The prediction: this keyframe's motion (and GPS) factors solved first.
+                    self._solve_pending(t)
+                pose = self.motion.pose_of(self._current_values(), k)
+                for scan in group.scans:
+                    self.scans.add(scan, k, self.motion.pose_key(k), pose)
+            self._update(t)
+        except IndeterminateSystem as failure:
+            self._stop(t, failure)
+            return
+        self._solved = True
         if created:
             self.motion.restart(t, self.estimate_values, k)
+
+    def _stop(self, t: float, failure: IndeterminateSystem) -> None:
+        """GTSAM found the system indeterminate at ``t`` [s]. At the first solve that is the
+        input's fault (nothing fixes some state): raised. Mid-run, on a graph that solved
+        before, it is the solver's numerical failure, in practice an estimate that diverged
+        (values of 1e250 before the exception): the run stops there and keeps what it has,
+        its causal states up to ``t``, with the failure as an event and a note
+        (``workbench.metrics.divergence`` reports it as diverged). A batch smoother has
+        nothing to keep before its end: raised."""
+        if not self._solved or not self.record_causal:
+            raise failure
+        self.stopped = (float(t), str(failure))
+        self.recorder.event(t, "solver_failed", reason=str(failure))
+        self.notes.append(
+            f"{self.mode} smoother: stopped at t={t:.3f} s, GTSAM could no longer solve the "
+            f"system (its estimate had diverged): no estimate after it ({failure})"
+        )
 
     def _current_values(self) -> gtsam.Values:
         """Newest keyframe's estimate, with the not yet committed values layered on top."""
@@ -274,7 +304,7 @@ class KeyframeSmoother:
         self.backend.update(graph, values, times, t, newest)
         self._report_fallback()
         # Only the newest keyframe's state is needed to go on (the full estimate is O(n)).
-        self.estimate_values = self.backend.values(self.motion.keys(len(self.keyframe_t) - 1))
+        self.estimate_values = self.backend.values(self.motion.keys(len(self.keyframe_t) - 1), t)
 
     def _report_fallback(self) -> None:
         """The backend's switch from Cholesky to QR, once, as an event and a note."""
@@ -315,10 +345,13 @@ class KeyframeSmoother:
 
     # ------------------------------------------------------------------ output
     def _flush(self) -> None:
-        if self.group is not None:
+        if self.stopped is None and self.group is not None:
             self._commit_group()
-        if not self.pending.empty():
-            self._update(self.keyframe_t[-1])
+        if self.stopped is None and not self.pending.empty():
+            try:
+                self._update(self.keyframe_t[-1])
+            except IndeterminateSystem as failure:
+                self._stop(self.keyframe_t[-1], failure)
 
     def landmark_map(self, values: gtsam.Values, joint: JointQuery) -> LandmarkMap:
         """World-frame map at the last keyframe of the landmarks whose variables ``values``

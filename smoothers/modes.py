@@ -32,9 +32,10 @@ from typing import ClassVar
 import gtsam
 
 from datasets.errors import InputError
-from datasets.estimate import Estimate
+from datasets.estimate import Estimate, EstimateRecorder
 from datasets.measurements import Sensor
 from datasets.sequence import Sequence
+from datasets.state import LandmarkMap
 from smoothers.backends import FixedLagBackend
 from smoothers.config import BatchConfig, FixedLagConfig, Isam2Config
 from smoothers.dense_marginals import DenseQrMarginals
@@ -59,6 +60,10 @@ class SmootherIsam2(KeyframeSmoother):
 
     def estimate(self) -> Estimate:
         self._flush()
+        if self.stopped is not None:  # the solver failed mid-run: its causal states only
+            return self.recorder.build(
+                landmarks=LandmarkMap.empty(self.dimension), notes=tuple(self.notes)
+            )
         values = self.backend.estimate()
         final_map = self.landmark_map(values, self.backend.joint)
         smoothed = with_map(self.smoothed_history(values, self.backend.joint), final_map)
@@ -204,6 +209,16 @@ class SmootherFixedLag(KeyframeSmoother):
 
     def estimate(self) -> Estimate:
         self._flush()
+        if self.stopped is not None:
+            # the solver failed mid-run: the causal states, and what had left the window
+            # smoothed before it failed (the window itself cannot be read any more)
+            empty = LandmarkMap.empty(self.dimension)
+            smoothed = with_map(
+                self.exports.history(EstimateRecorder(self.dimension).history()), empty
+            )
+            return self.recorder.build(
+                landmarks=self.exports.merged_map(empty), smoothed=smoothed, notes=tuple(self.notes)
+            )
         values = self.backend.estimate()
         in_window = [
             k

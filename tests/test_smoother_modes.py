@@ -252,3 +252,47 @@ def test_a_stretch_without_sightings_stays_in_the_window_until_its_end_is_solved
         assert left == []
     else:
         assert len(left) >= len(inside) // 2
+
+
+@pytest.mark.parametrize("estimator_class", [SmootherIsam2, SmootherFixedLag])
+def test_a_solver_failure_mid_run_stops_the_run_and_is_reported_as_divergence(
+    estimator_class, monkeypatch
+):
+    """GTSAM meeting an indeterminate system mid-run (a diverged window: the Intel laser log's
+    fixed-lag run reached values of 1e250 first) stops the run with what it has, an event, a
+    note and a divergence at that time; the same failure at the first solve (nothing fixes
+    some state) stays an error."""
+    from smoothers import backends
+    from smoothers.gtsam_errors import IndeterminateSystem
+    from workbench.metrics.divergence import detect_divergence
+
+    sequence = load_dataset("sim:guerreiro-loop", 1, {"duration_s": "12"})
+    fetch = backends.fetch_values
+    calls = {"n": 0}
+    fail_from = 40
+
+    def failing(source, keys, dimension):
+        calls["n"] += 1
+        if calls["n"] >= fail_from:
+            raise RuntimeError("\nIndeterminant linear system detected while working near variable l3")
+        return fetch(source, keys, dimension)
+
+    monkeypatch.setattr(backends, "fetch_values", failing)
+    estimator, estimate = _run(estimator_class, estimator_class.Config(), sequence)
+    assert estimator.stopped is not None
+    t_stop = estimator.stopped[0]
+    assert sequence.initial_state.t < t_stop < sequence.ground_truth.history.pose.t[-1] - 1.0
+    assert estimator.dropped_after_stop > 0
+    causal = estimate.causal.pose
+    assert len(causal) > 5 and causal.t[-1] <= t_stop
+    assert np.all(np.isfinite(causal.positions))
+    assert [e.t for e in estimate.diagnostics.events if e.kind == "solver_failed"] == [t_stop]
+    assert any("stopped at t=" in note for note in estimate.notes)
+    divergence = detect_divergence(estimate, sequence)
+    assert divergence is not None and divergence.t == t_stop
+    assert "solver stopped" in divergence.reason
+
+    calls["n"] = 0
+    fail_from = 1
+    with pytest.raises(IndeterminateSystem, match="indeterminate"):
+        _run(estimator_class, estimator_class.Config(), sequence)

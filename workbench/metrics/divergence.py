@@ -15,7 +15,11 @@
    or, without one, by the box's diagonal. A pose outside it is not an estimate of that
    robot (UTIAS: a 10 m arena, and a fixed-lag run 640 m outside it).
 
-Either is reported with the time it began (``Divergence``), in metrics.json
+3. **Its solver gave up.** A smoother whose GTSAM solver met an indeterminate system mid-run,
+   on a graph it had solved before, stops there (``smoothers.keyframe_smoother``: its
+   estimate had run off to values of 1e250 first); its ``solver_failed`` event is the time.
+
+Each is reported with the time it began (``Divergence``), in metrics.json
 (``diverged_at_s``, ``divergence``) and as a warning under every table.
 """
 
@@ -53,7 +57,11 @@ def detect_divergence(estimate: Estimate, sequence: Sequence) -> Divergence | No
     """The earliest sign of divergence (module docstring) in ``estimate``, or None."""
     found = [
         sign
-        for sign in (_gates_abandoned(estimate), _outside_the_map(estimate, sequence))
+        for sign in (
+            _gates_abandoned(estimate),
+            _outside_the_map(estimate, sequence),
+            _solver_failed(estimate),
+        )
         if sign is not None
     ]
     return min(found, key=lambda sign: sign.t) if found else None
@@ -76,6 +84,17 @@ def out_of_gate(estimate: Estimate) -> tuple[np.ndarray, np.ndarray]:
         | (np.asarray(diagnostics.assoc_inflation, dtype=float) > 1.0)
     )
     return np.asarray(diagnostics.assoc_t, dtype=float)[keep], outside[keep]
+
+
+def _solver_failed(estimate: Estimate) -> Divergence | None:
+    """The estimator's ``solver_failed`` event (module docstring, sign 3), if any."""
+    for event in estimate.diagnostics.events:
+        if event.kind == "solver_failed":
+            return Divergence(
+                float(event.t),
+                f"its solver stopped, no estimate after it ({event.details['reason']})",
+            )
+    return None
 
 
 def _gates_abandoned(estimate: Estimate) -> Divergence | None:
