@@ -274,7 +274,9 @@ def test_a_solver_failure_mid_run_stops_the_run_and_is_reported_as_divergence(
     def failing(source, keys, dimension):
         calls["n"] += 1
         if calls["n"] >= fail_from:
-            raise RuntimeError("\nIndeterminant linear system detected while working near variable l3")
+            raise RuntimeError(
+                "\nIndeterminant linear system detected while working near variable l3"
+            )
         return fetch(source, keys, dimension)
 
     monkeypatch.setattr(backends, "fetch_values", failing)
