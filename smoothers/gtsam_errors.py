@@ -15,7 +15,13 @@ from datasets.errors import InputError
 class IndeterminateSystem(InputError):
     """GTSAM found the linear system indeterminate (``explain``): at the first solve, a state
     nothing constrains (an input problem); mid-run, after the same graph solved before, a
-    numerical failure of the solver (``KeyframeSmoother`` stops the run there)."""
+    numerical failure of the solver (``KeyframeSmoother`` stops the run there).
+
+    Attributes:
+        gtsam: GTSAM's own message on one line.
+    """
+
+    gtsam: str = ""
 
 
 def gtsam_message(error: BaseException) -> str:
@@ -37,8 +43,10 @@ def explain(error: BaseException, t: float, context: str) -> InputError:
     message = gtsam_message(error)
     where = f"{context} at t={t:.6f} s" if math.isfinite(t) else context
     if is_indeterminate(error):
-        return IndeterminateSystem(
+        failure = IndeterminateSystem(
             f"{where}: the system is indeterminate (some state is not constrained: no prior, "
             f"anchors, GPS or enough landmarks reach it) -- GTSAM: {message}"
         )
+        failure.gtsam = message
+        return failure
     return InputError(f"{where} failed inside GTSAM: {message}")

@@ -278,11 +278,13 @@ class KeyframeSmoother:
         nothing to keep before its end: raised."""
         if not self._solved or not self.record_causal:
             raise failure
-        self.stopped = (float(t), str(failure))
-        self.recorder.event(t, "solver_failed", reason=str(failure))
+        reason = f"GTSAM: {failure.gtsam or failure}"
+        self.stopped = (float(t), reason)
+        self.recorder.event(t, "solver_failed", reason=reason)
         self.notes.append(
             f"{self.mode} smoother: stopped at t={t:.3f} s, GTSAM could no longer solve the "
-            f"system (its estimate had diverged): no estimate after it ({failure})"
+            f"system on a graph it had solved before (its estimate had diverged): no estimate "
+            f"after it ({reason})"
         )
 
     def _current_values(self) -> gtsam.Values:
