@@ -36,6 +36,12 @@ def check_regular_file(path: Path, what: str = "file") -> Path:
 def text_lines(path: Path, what: str = "file") -> Iterator[tuple[int, str]]:
     """(1-based line number, line) of a UTF-8 text file (a BOM dropped); ``InputError``
     naming the file (and the byte) for anything else."""
+    yield from enumerate(read_text(path, what).splitlines(), start=1)
+
+
+def read_text(path: Path, what: str = "file") -> str:
+    """The whole UTF-8 text of a file (a BOM dropped); ``InputError`` naming the file (and
+    the byte) for anything else."""
     path = check_regular_file(path, what)
     try:
         data = path.read_bytes()
@@ -49,4 +55,4 @@ def text_lines(path: Path, what: str = "file") -> Iterator[tuple[int, str]]:
         ) from None
     if "\x00" in text:
         raise InputError(f"{path}: not a text {what} (it contains NUL bytes)")
-    yield from enumerate(text.splitlines(), start=1)
+    return text

@@ -383,6 +383,33 @@ def test_read_table_converts_once_and_still_names_the_bad_line(tmp_path: Path) -
         read_table(table, ("time", "v", "omega"))
 
 
+def test_read_table_fast_path_is_bit_identical_to_reading_row_by_row(tmp_path: Path) -> None:
+    # pandas' C parser reads a clean file; with round-trip precision every value is the
+    # double Python's float() gives, and lines and printed decimals are those of the rows
+    from datasets.utias.tables import _read_table_checked
+
+    rng = np.random.default_rng(0)
+    rows = [f"{0.02 * k:.2f} {rng.normal():.17g} {rng.normal() * 1e-7:.6e}" for k in range(2000)]
+    rows[5] = "# a comment line"
+    rows[9] = ""
+    rows[12] = "   \t"
+    rows[20] = "+0.4 -0.0 1E+2  # trailing comment"
+    table = tmp_path / "Robot1_Odometry.dat"
+    table.write_text("\n".join(rows) + "\n")
+    fast = read_table(table, ("time", "v", "omega"))
+    checked = _read_table_checked(table, ("time", "v", "omega"))
+    assert fast.values.tobytes() == checked.values.tobytes()
+    np.testing.assert_array_equal(fast.lines, checked.lines)
+    np.testing.assert_array_equal(fast.first_decimals, checked.first_decimals)
+    assert len(fast.values) == 1997 and fast.lines[5] == 7
+    table.write_text("1.0 0.5 0.1\n2.0 0.5\n")
+    with pytest.raises(InputError, match=r"Robot1_Odometry.dat:2: expected 3 columns"):
+        read_table(table, ("time", "v", "omega"))
+    table.write_text("1.0 0.5 0.1\n2.0 0.5 0.1 7\n")
+    with pytest.raises(InputError, match=r"Robot1_Odometry.dat:2: expected 3 columns"):
+        read_table(table, ("time", "v", "omega"))
+
+
 # ---------------------------------------------------------------- calibration source
 def test_a_folder_with_one_robot_fits_nothing_and_says_so(tmp_path: Path) -> None:
     folder = write_folder(tmp_path / "d", grid_odometry(50), ["0.10 72 2.0 0.1"])
