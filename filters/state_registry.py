@@ -86,9 +86,6 @@ class StateRegistry:
         """Slice of the vehicle block ``name``."""
         return self._vehicle[name]
 
-    def has_vehicle(self, name: str) -> bool:
-        return name in self._vehicle
-
     def vehicle_indices(self, names: Sequence[str] | None = None) -> np.ndarray:
         """State indices of the named vehicle blocks, in the order named (all: None)."""
         if names is None:

@@ -49,8 +49,9 @@ class FilterState:
             [np.asarray(velocity, float).ravel(), np.asarray(bias, float).ravel()]
         )
         self.covariance = np.zeros((self.vehicle_dim, self.vehicle_dim))
-        self.covariance[:dimension, :dimension] = velocity_cov
-        self.covariance[dimension:, dimension:] = bias_cov
+        v, b = self.registry.vehicle("velocity"), self.registry.vehicle("bias")
+        self.covariance[v, v] = velocity_cov
+        self.covariance[b, b] = bias_cov
         self.measured = np.zeros((0, dimension))
         self.visible = np.zeros(0, dtype=bool)
         self._next_id = 0
@@ -70,11 +71,11 @@ class FilterState:
 
     @property
     def velocity(self) -> np.ndarray:
-        return self.x[: self.dimension]
+        return self.x[self.registry.vehicle("velocity")]
 
     @property
     def bias(self) -> np.ndarray:
-        return self.x[self.dimension : self.vehicle_dim]
+        return self.x[self.registry.vehicle("bias")]
 
     @property
     def features(self) -> np.ndarray:
