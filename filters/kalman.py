@@ -5,8 +5,9 @@ Pure numpy/scipy; it knows nothing of any estimator. Each filter keeps its paper
 (transition matrices, measurement models, Jacobians) in its own package and calls these
 functions with the matrices the paper defines.
 
-The state is laid out ``[vehicle (v) | landmarks]``; the covariance ``P`` (N, N) is an
-ndarray the caller owns and these functions update **in place** (a filter's covariance is
+The state is laid out ``[vehicle (v) | landmarks]`` (which rows belong to which variable is
+the ``filters.state_registry.StateRegistry``'s to say; the functions here take plain
+indices); the covariance ``P`` (N, N) is an ndarray the caller owns and these functions update **in place** (a filter's covariance is
 its largest object; copying it per step is what made the old updates slow).
 
 Measurement Jacobians are block sparse: a landmark observation touches the vehicle pose and

@@ -7,6 +7,7 @@ import numpy as np
 from datasets.rotations import so3_exp
 from filters.aghili import quaternion_jpl as quat
 from filters.aghili.measurement import predict, sensitivity
+from filters.aghili.transition import LANDMARK_BLOCKS, state_registry
 
 
 def test_prediction_uses_the_transpose_as_eq_2_says() -> None:
@@ -28,7 +29,10 @@ def test_sensitivity_matches_finite_differences() -> None:
     anchors = rng.normal(size=(2, 3)) * 4
     landmarks = rng.normal(size=(2, 3)) * 4
     world = np.vstack([anchors, landmarks])
-    slots = np.array([-1, -1, 0, 1])
+    registry = state_registry()
+    for landmark_id in (0, 1):
+        registry.augment(landmark_id, LANDMARK_BLOCKS)
+    ids = np.array([-1, -2, 0, 1])  # the anchors are not in the state
     state_dim = 15 + 3 * 2
 
     def h(dx: np.ndarray) -> np.ndarray:
@@ -38,7 +42,7 @@ def test_sensitivity_matches_finite_differences() -> None:
         return predict(quat.rotation_matrix(q_perturbed), r + dx[3:6], moved).ravel()
 
     H = sensitivity(
-        quat.rotation_matrix(q), predict(quat.rotation_matrix(q), r, world), slots, state_dim
+        quat.rotation_matrix(q), predict(quat.rotation_matrix(q), r, world), registry, ids
     )
     step = 1e-6
     numeric = np.column_stack(

@@ -68,11 +68,13 @@ from filters.aghili.transition import (
     ACCEL_BIAS,
     ATTITUDE,
     GYRO_BIAS,
+    LANDMARK_BLOCKS,
     POSITION,
     VEHICLE_DIM,
     VELOCITY,
     error_dynamics,
     lambda_matrices,
+    state_registry,
     vehicle_transition,
 )
 from filters.association import AssociationPolicy, Decision, ScanAssociation
@@ -165,9 +167,9 @@ class AghiliFilter:
                 3,
             )
         )
-        self.landmark_ids: list[int] = []  # map id of each estimated landmark, in state order
-        self.slot_of: dict[int, int] = {}  # map id -> state slot
-        self.rho = np.zeros((0, 3))
+        # where the vehicle blocks and each estimated landmark (map id -> its 3 entries) sit
+        self.registry = state_registry()
+        self.rho = np.zeros((0, 3))  # estimated landmarks' world positions, in state order
         self._next_new_id = 0
 
         # anchors (section 2.1)
@@ -202,6 +204,11 @@ class AghiliFilter:
         self.clock = StreamClock(self.name, self.t)
         self.counts = {"imu": 0, "scans": 0, "empty_scans": 0, "quaternion_resets": 0}
         self._record()
+
+    @property
+    def landmark_ids(self) -> np.ndarray:
+        """Map ids of the estimated landmarks in state order, (n,) (the registry's)."""
+        return self.registry.ids
 
     # ------------------------------------------------------------------ propagation
     def _propagate(self, dt: float, gyro: np.ndarray, accel: np.ndarray) -> None:
@@ -271,19 +278,21 @@ class AghiliFilter:
             return np.repeat(self.fixed_r[None], count, axis=0)
         return np.asarray(scan.covariances, dtype=float)
 
-    def _map_targets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """All map landmarks (anchors first): ids (m,), world positions (m, 3), slots (m,)."""
+    def _map_targets(self) -> tuple[np.ndarray, np.ndarray]:
+        """All map landmarks (anchors first): ids (m,), world positions (m, 3). The anchors
+        are not in the registry (known, not estimated)."""
         anchors = self.anchors
-        ids = np.array(anchors.ids[: anchors.placed] + self.landmark_ids, dtype=int)
+        ids = np.array(list(anchors.ids[: anchors.placed]) + list(self.landmark_ids), dtype=int)
         positions = np.vstack([anchors.positions, self.rho])
-        slots = np.r_[np.full(anchors.placed, -1), np.arange(len(self.landmark_ids))].astype(int)
-        return ids, positions, slots
+        return ids, positions
 
     def _associate(self, scan: LandmarkScan, R: np.ndarray) -> ScanAssociation:
         """One decision per sighting against the anchors and the map (the shared policy)."""
         points = np.asarray(scan.points, float)
-        map_ids, positions, slots = self._map_targets()
-        predictor = MapPredictor(quat.rotation_matrix(self.q), self.r, self.P, positions, slots)
+        map_ids, positions = self._map_targets()
+        predictor = MapPredictor(
+            quat.rotation_matrix(self.q), self.r, self.P, positions, map_ids, self.registry
+        )
         mode = self.policy.mode(scan.ids, scan.t)
         if mode != "ids":
             return self.policy.by_geometry(points, R, len(map_ids), predictor, mode)
@@ -386,11 +395,11 @@ class AghiliFilter:
         rows = association.rows(Decision.MATCHED)
         if rows.size == 0:
             return
-        _, positions, slots = self._map_targets()
+        map_ids, positions = self._map_targets()
         chosen = association.candidates[rows]
         attitude = quat.rotation_matrix(self.q)
         predicted = predict(attitude, self.r, positions[chosen])
-        jacobian = sparse_sensitivity(attitude, predicted, slots[chosen])
+        jacobian = sparse_sensitivity(attitude, predicted, self.registry, map_ids[chosen])
         residual = (points[rows] - predicted).ravel()  # z - h(x^-)
         noise = R[rows]
         used = association.noise[rows]  # inflated where the policy says so
@@ -434,15 +443,12 @@ class AghiliFilter:
         """
         attitude = quat.rotation_matrix(self.q)
         jacobian = kalman.SparseJacobian(
-            np.r_[
-                np.arange(ATTITUDE.start, ATTITUDE.stop), np.arange(POSITION.start, POSITION.stop)
-            ],
+            self.registry.columns(("attitude", "position")),
             np.hstack([-2.0 * attitude @ skew(point), np.eye(3)]),
         )
         self.P = kalman.augment(self.P, jacobian, attitude @ R @ attitude.T)
+        self.registry.augment(landmark_id, LANDMARK_BLOCKS)
         self.rho = np.vstack([self.rho, attitude @ point + self.r])
-        self.slot_of[landmark_id] = len(self.landmark_ids)
-        self.landmark_ids.append(landmark_id)
 
     def gauge_yaw_variance(self) -> float:
         """Variance [rad^2] along the rotation about gravity through the first anchor: the

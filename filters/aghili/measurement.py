@@ -6,15 +6,20 @@ the derivation of (10) all need ``Abar^T``, which is what we use (the sensitivit
 ``2 [p_hat x]`` of (10) is checked against finite differences of (7b) in
 ``tests/test_aghili_measurement.py``).
 
-Error state layout: ``transition`` module (``[dq_v, dr, dr_dot, db_g, db_a, drho...]``).
+Error state layout: ``transition`` module (``[dq_v, dr, dr_dot, db_g, db_a, drho...]``);
+where each estimated landmark sits is the filter's ``StateRegistry``'s to say. A landmark
+the registry does not hold is an anchor (known, not estimated): no landmark column.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from filters.aghili.transition import ATTITUDE, POSITION, VEHICLE_DIM
 from filters.kalman import SparseJacobian
+from filters.state_registry import StateRegistry
+
+SEEN_VEHICLE_BLOCKS = ("attitude", "position")
+"""The vehicle blocks a landmark observation depends on (eq. (10))."""
 
 
 def predict(attitude: np.ndarray, position: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
@@ -29,31 +34,25 @@ def predict(attitude: np.ndarray, position: np.ndarray, landmarks: np.ndarray) -
 
 
 def sparse_sensitivity(
-    attitude: np.ndarray, predicted: np.ndarray, state_slots: np.ndarray
+    attitude: np.ndarray, predicted: np.ndarray, registry: StateRegistry, ids: np.ndarray
 ) -> SparseJacobian:
     """Aghili eq. (10): stacked ``H`` (3k rows) by its non-zero columns.
 
-    Row block i: ``[2 [p_i x], -Abar^T, 0, 0, 0, ..., Abar^T (at landmark i's slot), ...]``;
-    anchors (known landmarks, ``state_slots[i] < 0``) have no landmark column. The
-    non-zero columns are the attitude and position errors and the observed landmarks.
+    Row block i: ``[2 [p_i x], -Abar^T, 0, 0, 0, ..., Abar^T (at landmark i's entries), ...]``;
+    anchors (known landmarks, not in ``registry``) have no landmark column. The non-zero
+    columns are the attitude and position errors and the observed landmarks.
 
     Args:
         attitude: ``Abar`` (3, 3).
         predicted: ``p_hat`` (k, 3) from ``predict``.
-        state_slots: (k,) index of each landmark among the estimated ones, -1 for anchors.
+        registry: where the state's blocks sit (``transition.state_registry``).
+        ids: (k,) map id of each landmark.
     """
     predicted = np.asarray(predicted, dtype=float)
-    slots = np.asarray(state_slots, dtype=int)
+    ids = np.asarray(ids, dtype=int)
     count = len(predicted)
-    estimated = np.flatnonzero(slots >= 0)
-    landmark_columns = (VEHICLE_DIM + 3 * slots[estimated, None] + np.arange(3)).ravel()
-    columns = np.concatenate(
-        [
-            np.arange(ATTITUDE.start, ATTITUDE.stop),
-            np.arange(POSITION.start, POSITION.stop),
-            landmark_columns,
-        ]
-    )
+    estimated = np.flatnonzero([int(landmark_id) in registry for landmark_id in ids])
+    columns = registry.columns(SEEN_VEHICLE_BLOCKS, ids[estimated])
     values = np.zeros((count, 3, columns.size))
     attitude_t = attitude.T
     x, y, z = predicted[:, 0], predicted[:, 1], predicted[:, 2]
@@ -69,10 +68,10 @@ def sparse_sensitivity(
 
 
 def sensitivity(
-    attitude: np.ndarray, predicted: np.ndarray, state_slots: np.ndarray, state_dim: int
+    attitude: np.ndarray, predicted: np.ndarray, registry: StateRegistry, ids: np.ndarray
 ) -> np.ndarray:
-    """Aghili eq. (10) as the dense (3k, state_dim) matrix (``sparse_sensitivity``)."""
-    return sparse_sensitivity(attitude, predicted, state_slots).dense(state_dim)
+    """Aghili eq. (10) as the dense (3k, N) matrix (``sparse_sensitivity``)."""
+    return sparse_sensitivity(attitude, predicted, registry, ids).dense(registry.size)
 
 
 def projected_blocks(jacobian: SparseJacobian, covariance: np.ndarray) -> np.ndarray:
@@ -91,8 +90,8 @@ class MapPredictor:
 
     Args:
         attitude: ``Abar`` (3, 3). position: ``r_hat`` (3,). covariance: P (15 + 3n, 15 + 3n).
-        positions: world positions of the candidates (m, 3). slots: their state slots (m,),
-            -1 for anchors.
+        positions: world positions of the candidates (m, 3). ids: their map ids (m,).
+        registry: where the state's blocks sit (anchors are not in it).
     """
 
     def __init__(
@@ -101,17 +100,19 @@ class MapPredictor:
         position: np.ndarray,
         covariance: np.ndarray,
         positions: np.ndarray,
-        slots: np.ndarray,
+        ids: np.ndarray,
+        registry: StateRegistry,
     ) -> None:
         self.attitude = attitude
         self.position = position
         self.covariance = covariance
         self.positions = positions
-        self.slots = slots
+        self.ids = np.asarray(ids, dtype=int)
+        self.registry = registry
 
     def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         predicted = predict(self.attitude, self.position, self.positions[indices])
-        jacobian = sparse_sensitivity(self.attitude, predicted, self.slots[indices])
+        jacobian = sparse_sensitivity(self.attitude, predicted, self.registry, self.ids[indices])
         columns, values = jacobian.columns, jacobian.values
         joint = values @ self.covariance[np.ix_(columns, columns)] @ values.T
         return predicted, 0.5 * (joint + joint.T)

@@ -14,7 +14,15 @@ from scipy.linalg import expm
 
 from datasets.rotations import skew
 from filters.aghili.measurement import predict, sensitivity
-from filters.aghili.transition import ATTITUDE, POSITION, VEHICLE_DIM, VELOCITY, error_dynamics
+from filters.aghili.transition import (
+    ATTITUDE,
+    LANDMARK_BLOCKS,
+    POSITION,
+    VEHICLE_DIM,
+    VELOCITY,
+    error_dynamics,
+    state_registry,
+)
 
 
 @dataclass(frozen=True)
@@ -33,10 +41,13 @@ def segment_matrices(
 ) -> tuple[np.ndarray, np.ndarray]:
     """F (21a) and H (10) for one segment: anchors (r, 3) and estimated landmarks (n, 3), world."""
     world = np.vstack([anchors, landmarks])
-    slots = np.r_[np.full(len(anchors), -1), np.arange(len(landmarks))]
     n = len(landmarks)
+    registry = state_registry()  # landmarks ids 0..n-1; the anchors (-1, -2, ...) are not in it
+    for landmark_id in range(n):
+        registry.augment(landmark_id, LANDMARK_BLOCKS)
+    ids = np.r_[-1 - np.arange(len(anchors)), np.arange(n)]
     F, _ = error_dynamics(omega_bar, a_bar, attitude, n)
-    H = sensitivity(attitude, predict(attitude, position, world), slots, F.shape[0])
+    H = sensitivity(attitude, predict(attitude, position, world), registry, ids)
     return F, H
 
 

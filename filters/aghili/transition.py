@@ -46,6 +46,7 @@ from math import factorial
 import numpy as np
 
 from datasets.rotations import skew
+from filters.state_registry import StateRegistry
 
 VEHICLE_DIM = 15
 """Size of the vehicle error state [dq_v, dr, dr_dot, db_g, db_a]."""
@@ -55,6 +56,25 @@ POSITION = slice(3, 6)
 VELOCITY = slice(6, 9)
 GYRO_BIAS = slice(9, 12)
 ACCEL_BIAS = slice(12, 15)
+
+VEHICLE_BLOCKS = (
+    ("attitude", ATTITUDE),
+    ("position", POSITION),
+    ("velocity", VELOCITY),
+    ("gyro_bias", GYRO_BIAS),
+    ("accel_bias", ACCEL_BIAS),
+)
+"""The vehicle blocks by name, in state order (the names the ``StateRegistry`` knows)."""
+
+LANDMARK_BLOCKS = (("position", 3),)
+"""An estimated landmark's blocks: its world position ``rho`` (3 entries)."""
+
+
+def state_registry() -> StateRegistry:
+    """The registry of an Aghili error state with no landmark yet: the vehicle blocks above,
+    landmarks appended by ``augment(id, LANDMARK_BLOCKS)``."""
+    return StateRegistry((name, block.stop - block.start) for name, block in VEHICLE_BLOCKS)
+
 
 _SERIES_LIMIT = 2.0
 _SERIES_TERMS = 20

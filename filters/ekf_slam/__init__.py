@@ -6,7 +6,8 @@ to become inconsistent: the Jacobians are evaluated at the current estimate, so 
 linearised system has spurious heading information. Modules:
 
 - ``config``: options (pydantic).
-- ``layout``: where each block sits in the joint state vector.
+- ``layout``: the vehicle blocks of the joint state (the landmarks' places are the
+  ``filters.state_registry.StateRegistry``'s, which the layout's blocks feed).
 - ``motion``: vehicle motion models (odometry relative pose, gyro + constant velocity).
 - ``motion_input``: the motion input chosen and one sample's increment or rate, motion gaps.
 - ``observation``: body-frame landmark observation, its Jacobians and inverse.

@@ -77,6 +77,7 @@ from filters.ekf_slam.motion_input import (
     widen_for_gap,
 )
 from filters.ekf_slam.scan_update import MapPredictor
+from filters.state_registry import StateRegistry
 
 
 class EkfSlam:
@@ -136,8 +137,9 @@ class EkfSlam:
                 _first(config.initial_gyro_bias_sigma_rad_s, noise.gyro_bias_sigma_rad_s, 0.01) ** 2
             ] * rotation_size
         self.covariance = np.diag(variances)
-        self.landmarks = np.zeros((0, d))
-        self.map_ids: list[int] = []
+        # where the vehicle blocks and each landmark (map id -> its d entries) sit in the state
+        self.registry = StateRegistry(self.layout.blocks())
+        self.landmarks = np.zeros((0, d))  # world positions (L, d) [m], in state order
         self.source_ids: list[int] = []  # the scan id each landmark was created from (-1: none)
         self.sightings: list[int] = []
         self.created_t: list[float] = []
@@ -165,7 +167,7 @@ class EkfSlam:
         estimator that continues it under another association (``multi_hypothesis``)."""
         copied = copy.copy(self)
         copied.covariance = self.covariance.copy()
-        copied.map_ids = list(self.map_ids)
+        copied.registry = self.registry.copy()
         copied.source_ids = list(self.source_ids)
         copied.sightings = list(self.sightings)
         copied.created_t = list(self.created_t)
@@ -178,7 +180,12 @@ class EkfSlam:
 
     @property
     def vehicle_size(self) -> int:
-        return self.layout.size
+        return self.registry.vehicle_size
+
+    @property
+    def map_ids(self) -> np.ndarray:
+        """Map ids of the landmarks in state order, (L,) (the registry's, read-only)."""
+        return self.registry.ids
 
     # ------------------------------------------------------------------ inputs
     def process(self, measurement: Measurement) -> None:
@@ -296,7 +303,7 @@ class EkfSlam:
         self.association_modes.add(association.mode)
         matched = association.rows(AssociationDecision.MATCHED)
         landmarks = np.full(len(points), -1, dtype=int)
-        landmarks[matched] = np.asarray(self.map_ids, dtype=int)[association.candidates[matched]]
+        landmarks[matched] = self.map_ids[association.candidates[matched]]
         association = self.policy.decorrelated(association, scan.t, points, noise, landmarks)
         if len(matched):
             scan_update.update(self, scan.t, points[matched], noise[matched], association, matched)
@@ -304,7 +311,7 @@ class EkfSlam:
         for j in association.rows(AssociationDecision.NEW):
             source = int(scan.ids[j]) if association.mode == "ids" else -1
             created[int(j)] = add_landmark(self, scan.t, points[j], noise[j], source)
-            self.policy.sighted(self.map_ids[created[int(j)]], scan.t)
+            self.policy.sighted(int(self.map_ids[created[int(j)]]), scan.t)
         record_associations(self, scan.t, association, created)
         prune(self, scan.t)
         self.recorder.landmark_count(scan.t, len(self.map_ids))

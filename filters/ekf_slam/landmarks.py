@@ -33,11 +33,11 @@ def add_landmark(ekf: EkfSlam, t: float, point: np.ndarray, noise: np.ndarray, s
     """Augment the state with a new landmark and its cross-covariances; returns its map
     index. ``source``: the scan id it was created from (-1 without ids)."""
     position, vehicle_jac, point_jac = initialise_landmark(ekf.vehicle, ekf.layout, point)
-    jacobian = kalman.SparseJacobian(np.arange(ekf.vehicle_size), vehicle_jac)
+    jacobian = kalman.SparseJacobian(ekf.registry.columns(None), vehicle_jac)  # whole vehicle
     ekf.covariance = kalman.augment(ekf.covariance, jacobian, point_jac @ noise @ point_jac.T)
+    ekf.registry.augment(ekf.next_id, [("position", ekf.dimension)])
     ekf.landmarks = np.vstack([ekf.landmarks, position])
     ekf.first_landmarks = np.vstack([ekf.first_landmarks, position])
-    ekf.map_ids.append(ekf.next_id)
     ekf.source_ids.append(int(source))
     ekf.next_id += 1
     ekf.sightings.append(1)
@@ -52,10 +52,10 @@ def record_associations(
     -> map index of the landmarks it created) and count the matched landmarks' sightings."""
     for j, decision in enumerate(association.decisions):
         if decision == AssociationDecision.NEW:
-            landmark_id = ekf.map_ids[created[j]]
+            landmark_id = int(ekf.map_ids[created[j]])
         elif decision == AssociationDecision.MATCHED:
             ekf.sightings[association.candidates[j]] += 1
-            landmark_id = ekf.map_ids[association.candidates[j]]
+            landmark_id = int(ekf.map_ids[association.candidates[j]])
         else:
             landmark_id = -1
         ekf.recorder.association(
@@ -85,13 +85,10 @@ def prune(ekf: EkfSlam, t: float) -> None:
     if not drop:
         return
     keep = [i for i in range(len(ekf.map_ids)) if i not in drop]
-    v, d = ekf.vehicle_size, ekf.dimension
-    rows = np.concatenate([np.arange(v)] + [np.arange(v + i * d, v + i * d + d) for i in keep])
-    ekf.covariance = kalman.marginalize(ekf.covariance, rows)
+    removed = [int(ekf.map_ids[i]) for i in sorted(drop)]
+    ekf.covariance = kalman.marginalize(ekf.covariance, ekf.registry.marginalize(removed))
     ekf.landmarks = ekf.landmarks[keep]
     ekf.first_landmarks = ekf.first_landmarks[keep]
-    removed = [ekf.map_ids[i] for i in sorted(drop)]
-    ekf.map_ids = [ekf.map_ids[i] for i in keep]
     ekf.source_ids = [ekf.source_ids[i] for i in keep]
     ekf.sightings = [ekf.sightings[i] for i in keep]
     ekf.created_t = [ekf.created_t[i] for i in keep]

@@ -1,9 +1,10 @@
-"""Where each block sits in the EKF-SLAM joint state vector.
+"""The EKF-SLAM's vehicle blocks in the joint state vector.
 
 Error-state order (the covariance's order): vehicle first, then landmarks in map order.
 Vehicle block: position (d), rotation (1 in 2-D: heading [rad]; 3 in 3-D: a world-frame
 rotation error ``R_true = Exp(dphi) R``), then optionally world velocity (d) and gyro bias
-(1 or 3). Landmarks: world positions (d each).
+(1 or 3). Landmarks: world positions (d each), placed by the filter's
+``filters.state_registry.StateRegistry``, which this layout's ``blocks`` feed.
 """
 
 from __future__ import annotations
@@ -60,7 +61,12 @@ class VehicleLayout:
             + (self.rotation_size if self.has_gyro_bias else 0)
         )
 
-    def landmark(self, index: int) -> slice:
-        """Slice of map landmark ``index`` (0-based map order) in the joint state."""
-        start = self.size + index * self.dimension
-        return slice(start, start + self.dimension)
+    def blocks(self) -> list[tuple[str, int]]:
+        """(name, size) of the vehicle blocks in state order: the ``StateRegistry``'s
+        named vehicle blocks (the slices above are the same, kept for the motion models)."""
+        blocks = [("position", self.dimension), ("rotation", self.rotation_size)]
+        if self.has_velocity:
+            blocks.append(("velocity", self.dimension))
+        if self.has_gyro_bias:
+            blocks.append(("gyro_bias", self.rotation_size))
+        return blocks

@@ -44,8 +44,7 @@ class MapPredictor:
         indices = np.asarray(indices, dtype=int)
         predicted, vehicle_jac, landmark_jac = ekf.predict(indices)
         P = ekf.covariance
-        starts = v + indices * d
-        rows = starts[:, None] + np.arange(d)
+        rows = ekf.registry.indices(ekf.map_ids[indices]).reshape(-1, d)  # (n, d)
         cross = P[:v][:, rows].transpose(1, 0, 2)  # (n, v, d): cov(vehicle, landmark)
         own = P[rows[:, :, None], rows[:, None, :]]  # (n, d, d)
         blocks = vehicle_jac @ P[:v, :v] @ np.swapaxes(vehicle_jac, 1, 2)
@@ -90,7 +89,7 @@ def observation_jacobian(
     indices = np.asarray(indices, dtype=int)
     predicted, vehicle_jac, landmark_jac = ekf.predict(indices)
     n = len(indices)
-    columns = np.concatenate([np.arange(v), (v + indices[:, None] * d + np.arange(d)).ravel()])
+    columns = ekf.registry.columns(None, ekf.map_ids[indices])  # whole vehicle, then each own
     values = np.zeros((n * d, v + n * d))
     values[:, :v] = vehicle_jac.reshape(n * d, v)
     for row in range(n):

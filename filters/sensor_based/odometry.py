@@ -123,8 +123,9 @@ def velocity_update(
     the state (``update.selection_update``). Its innovations are recorded apart
     (``extras['odometry_velocity_nis']``): the table's NIS stays the landmarks' one."""
     d = state.dimension
+    velocity = state.registry.vehicle_indices(["velocity"])
     state.x, outcome = selection_update(
-        state.x, state.covariance, np.arange(d), measured, covariance, [np.arange(d)]
+        state.x, state.covariance, velocity, measured, covariance, [np.arange(d)]
     )
     if outcome.innovation is not None:
         recorder.extra(

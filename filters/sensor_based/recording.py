@@ -38,19 +38,20 @@ def _attitude(rotation: np.ndarray, dimension: int) -> float | np.ndarray:
 
 def record_vehicle(recorder: EstimateRecorder, state: FilterState, t: float) -> None:
     """The velocity and gyro-bias blocks and the joint [v, b] block at ``t``."""
-    d, nv = state.dimension, state.vehicle_dim
+    v, b = state.registry.vehicle("velocity"), state.registry.vehicle("bias")
+    nv = state.vehicle_dim
     recorder.block(
         BlockName.VELOCITY,
         t,
         state.velocity.copy(),
-        state.covariance[:d, :d].copy(),
+        state.covariance[v, v].copy(),
         Frame.BODY,
     )
     recorder.block(
         BlockName.GYRO_BIAS,
         t,
         state.bias.copy(),
-        state.covariance[d:nv, d:nv].copy(),
+        state.covariance[b, b].copy(),
         Frame.BODY,
     )
     # The joint vehicle block (velocity and bias are correlated): for the vehicle NEES.

@@ -2,7 +2,10 @@
 
 Layout ``x = [v (d), b (r), features]`` (see ``dynamics``). A landmark owns one position
 feature and optionally direction features, stored contiguously: position first. Map ids
-are the filter's own (assigned in creation order, never reused).
+are the filter's own (assigned in creation order, never reused). Where each landmark and
+feature sits is the ``filters.state_registry.StateRegistry``'s to say: vehicle blocks
+``velocity`` and ``bias``, landmark blocks ``position`` and ``direction`` (d each); a
+feature index is the position of its block among the registry's landmark blocks.
 """
 
 from __future__ import annotations
@@ -11,6 +14,10 @@ import numpy as np
 
 from filters import kalman
 from filters.sensor_based.dynamics import rate_dimension
+from filters.state_registry import StateRegistry
+
+POSITION = "position"
+DIRECTION = "direction"
 
 
 class FilterState:
@@ -19,8 +26,9 @@ class FilterState:
     Attributes:
         dimension: d. rate_dim: r. vehicle_dim: d + r.
         x: (n,). covariance: (n, n).
-        owner: (F,) map id of the landmark each feature belongs to.
-        is_position: (F,) bool.
+        registry: where the vehicle blocks and every landmark's features sit.
+        owner: (F,) map id of the landmark each feature belongs to (the registry's).
+        is_position: (F,) bool (the registry's block names).
         measured: (F, d) last measured value of each feature (the ``y`` of ``A(t, y)``).
         visible: (F,) bool, measured in the latest scan (the set I_O).
     """
@@ -35,31 +43,39 @@ class FilterState:
     ) -> None:
         self.dimension = dimension
         self.rate_dim = rate_dimension(dimension)
-        self.vehicle_dim = dimension + self.rate_dim
+        self.registry = StateRegistry([("velocity", dimension), ("bias", self.rate_dim)])
+        self.vehicle_dim = self.registry.vehicle_size
         self.x = np.concatenate(
             [np.asarray(velocity, float).ravel(), np.asarray(bias, float).ravel()]
         )
         self.covariance = np.zeros((self.vehicle_dim, self.vehicle_dim))
-        self.covariance[:dimension, :dimension] = velocity_cov
-        self.covariance[dimension:, dimension:] = bias_cov
-        self.owner = np.zeros(0, dtype=int)
-        self.is_position = np.zeros(0, dtype=bool)
+        v, b = self.registry.vehicle("velocity"), self.registry.vehicle("bias")
+        self.covariance[v, v] = velocity_cov
+        self.covariance[b, b] = bias_cov
         self.measured = np.zeros((0, dimension))
         self.visible = np.zeros(0, dtype=bool)
         self._next_id = 0
 
     # ------------------------------------------------------------------ views
     @property
+    def owner(self) -> np.ndarray:
+        return self.registry.block_owners
+
+    @property
+    def is_position(self) -> np.ndarray:
+        return self.registry.block_names == POSITION
+
+    @property
     def feature_count(self) -> int:
         return int(self.owner.size)
 
     @property
     def velocity(self) -> np.ndarray:
-        return self.x[: self.dimension]
+        return self.x[self.registry.vehicle("velocity")]
 
     @property
     def bias(self) -> np.ndarray:
-        return self.x[self.dimension : self.vehicle_dim]
+        return self.x[self.registry.vehicle("bias")]
 
     @property
     def features(self) -> np.ndarray:
@@ -76,15 +92,12 @@ class FilterState:
 
     def state_indices(self, feature_indices: np.ndarray) -> np.ndarray:
         """State-vector indices of features, (len * d,) in feature order."""
-        feature_indices = np.asarray(feature_indices, dtype=int)
-        return (
-            self.vehicle_dim
-            + feature_indices[:, None] * self.dimension
-            + np.arange(self.dimension)[None, :]
-        ).ravel()
+        return self.registry.block_indices(feature_indices)
 
     def direction_features(self, landmark_id: int) -> np.ndarray:
-        return np.flatnonzero((self.owner == landmark_id) & ~self.is_position)
+        return np.flatnonzero(
+            (self.owner == landmark_id) & (self.registry.block_names == DIRECTION)
+        )
 
     def landmark_positions(self) -> tuple[np.ndarray, np.ndarray]:
         """(ids (L,), body-frame positions (L, d)), in state order."""
@@ -122,12 +135,12 @@ class FilterState:
         d = self.dimension
         values = [np.asarray(position, float).ravel()]
         covs = [np.asarray(position_cov, float)]
-        kinds = [True]
+        blocks = [(POSITION, d)]
         if directions is not None:
             for direction, cov in zip(directions, direction_covs):
                 values.append(np.asarray(direction, float).ravel())
                 covs.append(np.asarray(cov, float))
-                kinds.append(False)
+                blocks.append((DIRECTION, d))
         landmark_id = self._next_id
         self._next_id += 1
         # robocentric: the measurement *is* the landmark, uncorrelated with the state
@@ -135,24 +148,22 @@ class FilterState:
         self.covariance = kalman.augment(
             self.covariance, uncorrelated, kalman.block_diagonal(np.stack(covs))
         )
+        self.registry.augment(landmark_id, blocks)
         self.x = np.concatenate([self.x, *values])
-        self.owner = np.concatenate([self.owner, np.full(len(values), landmark_id)])
-        self.is_position = np.concatenate([self.is_position, np.array(kinds)])
         self.measured = np.vstack([self.measured, np.stack(values)])
         self.visible = np.concatenate([self.visible, np.ones(len(values), dtype=bool)])
         return landmark_id
 
     def remove_landmarks(self, landmark_ids: list[int] | np.ndarray) -> None:
         """Drop every feature of the given landmarks (marginalisation: delete rows/columns)."""
-        drop = np.isin(self.owner, np.asarray(landmark_ids, dtype=int))
+        landmark_ids = np.asarray(landmark_ids, dtype=int)
+        drop = np.isin(self.owner, landmark_ids)
         if not drop.any():
             return
-        keep_features = np.flatnonzero(~drop)
-        keep = np.concatenate([np.arange(self.vehicle_dim), self.state_indices(keep_features)])
+        keep_features = np.flatnonzero(~drop)  # per-feature data kept, in feature order
+        keep = self.registry.marginalize(landmark_ids)
         self.x = self.x[keep]
         self.covariance = kalman.marginalize(self.covariance, keep)
-        self.owner = self.owner[keep_features]
-        self.is_position = self.is_position[keep_features]
         self.measured = self.measured[keep_features]
         self.visible = self.visible[keep_features]
 

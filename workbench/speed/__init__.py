@@ -178,10 +178,10 @@ def filterpy_update_ms(landmarks: int = 200, repetitions: int = 10) -> float | N
     seen = np.arange(3, 3 + SCAN_LANDMARKS)
     scan = _scan_3d(0.0, world, seen, rng)
     attitude = quat.rotation_matrix(aghili.q)
-    slots = np.array([aghili.slot_of[int(i)] for i in seen])
-    predicted = predict(attitude, aghili.r, aghili.rho[slots])
+    rows = aghili.registry.order(seen)  # the landmarks' places among the estimated ones
+    predicted = predict(attitude, aghili.r, aghili.rho[rows])
     size = aghili.P.shape[0]
-    H = sparse_sensitivity(attitude, predicted, slots).dense(size)
+    H = sparse_sensitivity(attitude, predicted, aghili.registry, seen).dense(size)
     R = np.kron(np.eye(SCAN_LANDMARKS), _SIGMA_M**2 * np.eye(3))
     dense = ExtendedKalmanFilter(dim_x=size, dim_z=H.shape[0])
 
