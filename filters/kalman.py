@@ -125,9 +125,7 @@ def group_nis(residual: np.ndarray, innovation_covariance: np.ndarray, groups) -
         # consecutive groups of one size (a landmark each): one batched solve
         size = sizes.pop()
         count = residual.size // size
-        blocks = innovation_covariance.reshape(count, size, count, size)[
-            np.arange(count), :, np.arange(count), :
-        ]
+        blocks = diagonal_blocks(innovation_covariance, size)
         parts = residual.reshape(count, size)
         return np.einsum("gi,gi->g", parts, np.linalg.solve(blocks, parts[..., None])[..., 0])
     values = np.empty(len(groups))
@@ -181,6 +179,13 @@ def block_diagonal(blocks: np.ndarray) -> np.ndarray:
     # slower for many tiny blocks)
     stacked.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :] = blocks
     return stacked
+
+
+def diagonal_blocks(matrix: np.ndarray, d: int) -> np.ndarray:
+    """The n diagonal d x d blocks (n, d, d) of a stacked (n d, n d) matrix, a copy (the
+    inverse of ``block_diagonal``; each landmark's own block of a joint ``H P H^T`` or S)."""
+    count = matrix.shape[0] // d
+    return matrix.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :]
 
 
 def propagate_vehicle(

@@ -22,12 +22,12 @@ A landmark whose id the registry does not hold is known, not estimated (an Aghil
 its rows have vehicle columns only.
 
 ``blocks_from_joint`` makes ``individual`` read each candidate's block off the joint
-instead (``diagonal_blocks`` of the symmetrised stacked product): the same quantity, but
-BLAS sums a product's terms in an order that depends on the matrices' shapes, so the two
-differ by round-off (about 3e-16 relative). The Aghili filter's gates were always taken
-off the joint (its map is the anchors and tens of landmarks); it keeps that algebra so its
-estimates stay bit-identical (the inflated noise of a sighting outside the id gate, and so
-the estimate, depends on the block's last bits).
+instead (``kalman.diagonal_blocks`` of the symmetrised stacked product): the same
+quantity, but BLAS sums a product's terms in an order that depends on the matrices'
+shapes, so the two differ by round-off (about 3e-16 relative). The Aghili filter's gates
+were always taken off the joint (its map is the anchors and tens of landmarks); it keeps
+that algebra so its estimates stay bit-identical (the inflated noise of a sighting outside
+the id gate, and so the estimate, depends on the block's last bits).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from filters.kalman import SparseJacobian
+from filters.kalman import SparseJacobian, diagonal_blocks
 from filters.state_registry import StateRegistry
 
 
@@ -177,12 +177,6 @@ def projected_covariance(jacobian: SparseJacobian, covariance: np.ndarray) -> np
     (symmetric to round-off only; ``LandmarkPredictor.joint`` symmetrises it)."""
     columns, values = jacobian.columns, jacobian.values
     return values @ covariance[np.ix_(columns, columns)] @ values.T
-
-
-def diagonal_blocks(matrix: np.ndarray, d: int) -> np.ndarray:
-    """The n diagonal d x d blocks (n, d, d) of a stacked (n d, n d) matrix (a copy)."""
-    count = matrix.shape[0] // d
-    return matrix.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :]
 
 
 def _rows(

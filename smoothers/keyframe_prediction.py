@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from datasets.rotations import PLANAR_GENERATOR
-from filters.kalman import Innovation, innovation_statistics
+from filters.kalman import Innovation, diagonal_blocks, innovation_statistics
 from smoothers.joint_marginals import JointMarginals, JointQuery
 from smoothers.landmark_book import MapLandmark
 
@@ -114,9 +114,7 @@ class KeyframePredictor:
     def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(predicted (n, d), each candidate's own block of ``H J H^T`` (n, d, d))."""
         predicted, joint = self.joint(indices)
-        d, count = self.dimension, len(predicted)
-        blocks = joint.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :]
-        return predicted, blocks
+        return predicted, diagonal_blocks(joint, self.dimension)
 
     def innovation(
         self, indices: np.ndarray, measured: np.ndarray, noise: np.ndarray

@@ -7,12 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from filters.landmark_predictor import (
-    LandmarkMeasurement,
-    LandmarkPredictor,
-    diagonal_blocks,
-    stacked_jacobian,
-)
+from filters.kalman import diagonal_blocks
+from filters.landmark_predictor import LandmarkMeasurement, LandmarkPredictor, stacked_jacobian
 from filters.state_registry import StateRegistry
 
 SIZE = 13

@@ -78,7 +78,7 @@ from filters.aghili.transition import (
     vehicle_transition,
 )
 from filters.association import AssociationPolicy, Decision, ScanAssociation
-from filters.landmark_predictor import diagonal_blocks, projected_covariance
+from filters.landmark_predictor import projected_covariance
 
 GRAVITY_M_S2 = 9.81
 """Magnitude of g in eq. (15) (``g = (0, 0, +9.81)`` world z-up, subtracted)."""
@@ -407,7 +407,8 @@ class AghiliFilter:
         if self.noise_window is not None and self.noise_window.residual == "prior":
             # eq. (42) as printed: prior residuals with their H P^- H^T blocks, used at once
             self.noise_window.add(
-                residual.reshape(-1, 3), diagonal_blocks(projected_covariance(jacobian, self.P), 3)
+                residual.reshape(-1, 3),
+                kalman.diagonal_blocks(projected_covariance(jacobian, self.P), 3),
             )
             if self.noise_window.ready:
                 noise = used = np.repeat(self.noise_window.estimate()[None], len(rows), axis=0)
@@ -437,7 +438,7 @@ class AghiliFilter:
             # (module docstring of adaptive_noise); the next scan uses the new estimate
             posterior = (residual - jacobian.times(dx)).reshape(-1, 3)
             self.noise_window.add(
-                posterior, diagonal_blocks(projected_covariance(jacobian, self.P), 3)
+                posterior, kalman.diagonal_blocks(projected_covariance(jacobian, self.P), 3)
             )
 
     def _augment(self, point: np.ndarray, R: np.ndarray, landmark_id: int) -> None:
