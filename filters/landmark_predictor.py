@@ -24,7 +24,7 @@ its rows have vehicle columns only.
 ``blocks_from_joint`` makes ``individual`` read each candidate's block off the joint
 instead (``kalman.diagonal_blocks`` of the symmetrised stacked product): the same
 quantity, but BLAS sums a product's terms in an order that depends on the matrices'
-shapes, so the two differ by round-off (about 3e-16 relative). The Aghili filter's gates
+shapes, so the two differ by round-off (a few 1e-16 relative). The Aghili filter's gates
 were always taken off the joint (its map is the anchors and tens of landmarks); it keeps
 that algebra so its estimates stay bit-identical (the inflated noise of a sighting outside
 the id gate, and so the estimate, depends on the block's last bits).
