@@ -1,1 +1,2 @@
-"""Recursive estimators. Kept free of imports so ``smoothers`` can load ``filters.association`` alone."""
+"""Recursive estimators. Kept free of imports so ``smoothers`` can load ``filters.association``
+and ``filters.kalman`` alone."""

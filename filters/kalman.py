@@ -26,9 +26,12 @@ refused with a reason, never applied half-way. The Joseph form's extra robustnes
 errors in a *suboptimal* gain; here the gain is always the exact optimal one, computed
 through the same Cholesky factor.
 
-Innovation statistics: the stacked NIS of the whole update ``nu^T S^-1 nu`` with dof
-``m``, and the NIS of each group (one associated landmark, say) against its own diagonal
-block of ``S`` (Bar-Shalom, Li, Kirubarajan, sec. 5.4).
+Innovation statistics (``Innovation``), owned here: ``update`` returns them with every
+update (``UpdateOutcome.innovation``) and each filter records what it gets back. The stacked
+NIS of the whole update ``nu^T S^-1 nu`` with dof ``m``, and the NIS of each group (one
+associated landmark, say) against its own diagonal block of ``S`` (Bar-Shalom, Li,
+Kirubarajan, sec. 5.4). ``innovation_statistics`` computes the same of a given ``nu`` and
+``S`` for an estimator without this core's update (the smoothers' keyframe prediction).
 """
 
 from __future__ import annotations
@@ -37,8 +40,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import blas, solve_triangular
-
-from filters.association.compatibility import Innovation, group_nis, innovation_statistics
 
 
 @dataclass(frozen=True)
@@ -101,6 +102,60 @@ class SparseJacobian:
 
 
 @dataclass(frozen=True)
+class Innovation:
+    """The innovation statistics of one update.
+
+    Attributes:
+        nis: stacked ``nu^T S^-1 nu`` of the whole update (dimensionless).
+        dof: its degrees of freedom, the number of stacked measurement rows m.
+        group_nis: NIS of each group against its own diagonal block of S, shape (G,).
+        group_dof: rows of each group, shape (G,).
+    """
+
+    nis: float
+    dof: int
+    group_nis: np.ndarray
+    group_dof: np.ndarray
+
+
+def group_nis(residual: np.ndarray, innovation_covariance: np.ndarray, groups) -> np.ndarray:
+    """``nu_g^T S_gg^-1 nu_g`` for each group g of rows (G,)."""
+    sizes = {len(rows) for rows in groups}
+    if len(sizes) == 1 and np.array_equal(np.concatenate(groups), np.arange(residual.size)):
+        # consecutive groups of one size (a landmark each): one batched solve
+        size = sizes.pop()
+        count = residual.size // size
+        blocks = diagonal_blocks(innovation_covariance, size)
+        parts = residual.reshape(count, size)
+        return np.einsum("gi,gi->g", parts, np.linalg.solve(blocks, parts[..., None])[..., 0])
+    values = np.empty(len(groups))
+    for index, rows in enumerate(groups):
+        block = innovation_covariance[np.ix_(rows, rows)]
+        values[index] = float(residual[rows] @ np.linalg.solve(block, residual[rows]))
+    return values
+
+
+def innovation_statistics(
+    residual: np.ndarray, covariance: np.ndarray, groups: list[np.ndarray]
+) -> Innovation | None:
+    """The stacked NIS ``nu^T S^-1 nu`` (dof = rows) of an innovation ``nu`` (m,) with
+    covariance ``S`` (m, m), and each group's against its own diagonal block; None when S
+    is not positive definite."""
+    residual = np.asarray(residual, dtype=float)
+    try:
+        factor = np.linalg.cholesky(0.5 * (covariance + covariance.T))
+    except np.linalg.LinAlgError:
+        return None
+    whitened = np.linalg.solve(factor, residual)
+    return Innovation(
+        nis=float(whitened @ whitened),
+        dof=int(residual.size),
+        group_nis=group_nis(residual, covariance, groups),
+        group_dof=np.array([len(group) for group in groups], dtype=int),
+    )
+
+
+@dataclass(frozen=True)
 class UpdateOutcome:
     """What an update did.
 
@@ -124,6 +179,13 @@ def block_diagonal(blocks: np.ndarray) -> np.ndarray:
     # slower for many tiny blocks)
     stacked.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :] = blocks
     return stacked
+
+
+def diagonal_blocks(matrix: np.ndarray, d: int) -> np.ndarray:
+    """The n diagonal d x d blocks (n, d, d) of a stacked (n d, n d) matrix, a copy (the
+    inverse of ``block_diagonal``; each landmark's own block of a joint ``H P H^T`` or S)."""
+    count = matrix.shape[0] // d
+    return matrix.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :]
 
 
 def propagate_vehicle(

@@ -29,5 +29,6 @@ Modules, one idea each:
 - ``lag_window``: what leaves the fixed-lag window, kept.
 - ``speed``: the speed figures of ``workbench bench-speed``.
 
-Imports ``datasets`` and, from ``filters``, only ``filters.association``.
+Imports ``datasets`` and, from ``filters``, only ``filters.association`` and the Kalman
+core's innovation statistics (``filters.kalman``; neither loads a filter).
 """

@@ -7,7 +7,7 @@ scan may see is its covariance (one batched backend query per keyframe). From it
 predictor gives the association policy the predicted measurements ``h_i = R^T (l_i - p)``
 and ``H J H^T``, and ``innovation`` gives the stacked NIS of the matched sightings
 ``nu^T (H J H^T + R)^-1 nu`` with its dof (rows), and each landmark's own: the statistics
-every filter records (``filters.association.innovation_statistics``).
+every filter records (``filters.kalman.innovation_statistics``).
 
 Jacobians on GTSAM's tangents (right perturbation): 3-D ``Pose3`` [omega, v]:
 ``dh/domega = [h]x``, ``dh/dv = -I``; 2-D ``Pose2`` [x, y, theta]: ``dh/d(x, y) = -I``,
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from datasets.rotations import PLANAR_GENERATOR
-from filters.association import Innovation, innovation_statistics
+from filters.kalman import Innovation, diagonal_blocks, innovation_statistics
 from smoothers.joint_marginals import JointMarginals, JointQuery
 from smoothers.landmark_book import MapLandmark
 
@@ -114,9 +114,7 @@ class KeyframePredictor:
     def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(predicted (n, d), each candidate's own block of ``H J H^T`` (n, d, d))."""
         predicted, joint = self.joint(indices)
-        d, count = self.dimension, len(predicted)
-        blocks = joint.reshape(count, d, count, d)[np.arange(count), :, np.arange(count), :]
-        return predicted, blocks
+        return predicted, diagonal_blocks(joint, self.dimension)
 
     def innovation(
         self, indices: np.ndarray, measured: np.ndarray, noise: np.ndarray

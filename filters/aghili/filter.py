@@ -57,7 +57,7 @@ from filters.aghili import quaternion_jpl as quat
 from filters.aghili.adaptive_noise import SlidingWindowNoise
 from filters.aghili.anchors import Anchors
 from filters.aghili.config import AghiliConfig
-from filters.aghili.measurement import MapPredictor, predict, projected_blocks, sparse_sensitivity
+from filters.aghili.measurement import map_predictor, predict, sparse_sensitivity
 from filters.aghili.observability import gauge_rotation_direction, variance_along
 from filters.aghili.process_noise import (
     noise_covariance,
@@ -78,6 +78,7 @@ from filters.aghili.transition import (
     vehicle_transition,
 )
 from filters.association import AssociationPolicy, Decision, ScanAssociation
+from filters.landmark_predictor import projected_covariance
 
 GRAVITY_M_S2 = 9.81
 """Magnitude of g in eq. (15) (``g = (0, 0, +9.81)`` world z-up, subtracted)."""
@@ -290,7 +291,7 @@ class AghiliFilter:
         """One decision per sighting against the anchors and the map (the shared policy)."""
         points = np.asarray(scan.points, float)
         map_ids, positions = self._map_targets()
-        predictor = MapPredictor(
+        predictor = map_predictor(
             quat.rotation_matrix(self.q), self.r, self.P, positions, map_ids, self.registry
         )
         mode = self.policy.mode(scan.ids, scan.t)
@@ -405,7 +406,10 @@ class AghiliFilter:
         used = association.noise[rows]  # inflated where the policy says so
         if self.noise_window is not None and self.noise_window.residual == "prior":
             # eq. (42) as printed: prior residuals with their H P^- H^T blocks, used at once
-            self.noise_window.add(residual.reshape(-1, 3), projected_blocks(jacobian, self.P))
+            self.noise_window.add(
+                residual.reshape(-1, 3),
+                kalman.diagonal_blocks(projected_covariance(jacobian, self.P), 3),
+            )
             if self.noise_window.ready:
                 noise = used = np.repeat(self.noise_window.estimate()[None], len(rows), axis=0)
         groups = [np.arange(3 * n, 3 * n + 3) for n in range(len(rows))]
@@ -433,7 +437,9 @@ class AghiliFilter:
             # eq. (42) on post-fit residuals e = z - h(x^+) ~ rho - H dx, with H P^+ H^T
             # (module docstring of adaptive_noise); the next scan uses the new estimate
             posterior = (residual - jacobian.times(dx)).reshape(-1, 3)
-            self.noise_window.add(posterior, projected_blocks(jacobian, self.P))
+            self.noise_window.add(
+                posterior, kalman.diagonal_blocks(projected_covariance(jacobian, self.P), 3)
+            )
 
     def _augment(self, point: np.ndarray, R: np.ndarray, landmark_id: int) -> None:
         """Aghili section 4.3: add ``rho = Abar z + r`` with its cross-covariance.

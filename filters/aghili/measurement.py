@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from filters.kalman import SparseJacobian
+from filters.landmark_predictor import LandmarkMeasurement, LandmarkPredictor, stacked_jacobian
 from filters.state_registry import StateRegistry
 
 SEEN_VEHICLE_BLOCKS = ("attitude", "position")
@@ -33,14 +34,41 @@ def predict(attitude: np.ndarray, position: np.ndarray, landmarks: np.ndarray) -
     return (np.asarray(landmarks, dtype=float) - position) @ attitude
 
 
+def linearised(attitude: np.ndarray, predicted: np.ndarray, ids: np.ndarray) -> LandmarkMeasurement:
+    """Aghili eq. (10) per landmark: row block i is ``[2 [p_i x], -Abar^T]`` on the attitude
+    and position errors and ``Abar^T`` on landmark i's position (none for an anchor: a
+    landmark the registry does not hold).
+
+    Args:
+        attitude: ``Abar`` (3, 3).
+        predicted: ``p_hat`` (k, 3) from ``predict``.
+        ids: (k,) map id of each landmark.
+    """
+    predicted = np.asarray(predicted, dtype=float)
+    count = len(predicted)
+    attitude_t = attitude.T
+    x, y, z = predicted[:, 0], predicted[:, 1], predicted[:, 2]
+    zero = np.zeros(count)
+    skews = np.stack(
+        [np.stack([zero, -z, y], 1), np.stack([z, zero, -x], 1), np.stack([-y, x, zero], 1)], 1
+    )
+    vehicle = np.zeros((count, 3, 6))
+    vehicle[:, :, 0:3] = 2.0 * skews  # [p_i x]
+    vehicle[:, :, 3:6] = -attitude_t
+    return LandmarkMeasurement(
+        predicted,
+        np.asarray(ids, dtype=int),
+        vehicle=SEEN_VEHICLE_BLOCKS,
+        vehicle_jacobian=vehicle,
+        landmark_jacobian=np.broadcast_to(attitude_t, (count, 3, 3)),
+    )
+
+
 def sparse_sensitivity(
     attitude: np.ndarray, predicted: np.ndarray, registry: StateRegistry, ids: np.ndarray
 ) -> SparseJacobian:
-    """Aghili eq. (10): stacked ``H`` (3k rows) by its non-zero columns.
-
-    Row block i: ``[2 [p_i x], -Abar^T, 0, 0, 0, ..., Abar^T (at landmark i's entries), ...]``;
-    anchors (known landmarks, not in ``registry``) have no landmark column. The non-zero
-    columns are the attitude and position errors and the observed landmarks.
+    """Aghili eq. (10): stacked ``H`` (3k rows) by its non-zero columns (``linearised``):
+    the attitude and position errors and the observed estimated landmarks.
 
     Args:
         attitude: ``Abar`` (3, 3).
@@ -48,23 +76,7 @@ def sparse_sensitivity(
         registry: where the state's blocks sit (``transition.state_registry``).
         ids: (k,) map id of each landmark.
     """
-    predicted = np.asarray(predicted, dtype=float)
-    ids = np.asarray(ids, dtype=int)
-    count = len(predicted)
-    estimated = np.flatnonzero([int(landmark_id) in registry for landmark_id in ids])
-    columns = registry.columns(SEEN_VEHICLE_BLOCKS, ids[estimated])
-    values = np.zeros((count, 3, columns.size))
-    attitude_t = attitude.T
-    x, y, z = predicted[:, 0], predicted[:, 1], predicted[:, 2]
-    zero = np.zeros(count)
-    skews = np.stack(
-        [np.stack([zero, -z, y], 1), np.stack([z, zero, -x], 1), np.stack([-y, x, zero], 1)], 1
-    )
-    values[:, :, 0:3] = 2.0 * skews  # [p_i x]
-    values[:, :, 3:6] = -attitude_t
-    own = 6 + 3 * np.arange(estimated.size)[:, None] + np.arange(3)  # each landmark's columns
-    values[estimated[:, None, None], np.arange(3)[None, :, None], own[:, None, :]] = attitude_t
-    return SparseJacobian(columns, values.reshape(3 * count, columns.size))
+    return stacked_jacobian(registry, linearised(attitude, predicted, ids))
 
 
 def sensitivity(
@@ -74,51 +86,29 @@ def sensitivity(
     return sparse_sensitivity(attitude, predicted, registry, ids).dense(registry.size)
 
 
-def projected_blocks(jacobian: SparseJacobian, covariance: np.ndarray) -> np.ndarray:
-    """Diagonal 3 x 3 blocks of ``H P H^T`` (m, 3, 3) (the eq. (42) window's ``H P H^T``
-    per landmark), from the non-zero columns of H only."""
-    columns, values = jacobian.columns, jacobian.values
-    full = values @ covariance[np.ix_(columns, columns)] @ values.T
-    count = full.shape[0] // 3
-    return full.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
-
-
-class MapPredictor:
-    """The association ``Predictor`` (``filters.association``) of the Aghili map: anchors and
-    estimated landmarks seen from the nominal pose (eqs. (7b), (10)), with ``H P H^T`` from
-    the error covariance.
+def map_predictor(
+    attitude: np.ndarray,
+    position: np.ndarray,
+    covariance: np.ndarray,
+    positions: np.ndarray,
+    ids: np.ndarray,
+    registry: StateRegistry,
+) -> LandmarkPredictor:
+    """The association ``Predictor`` (``filters.association``) of the Aghili map (the shared
+    ``filters.landmark_predictor``): anchors and estimated landmarks seen from the nominal
+    pose (eqs. (7b), (10)), with ``H P H^T`` from the error covariance; each candidate's
+    block is read off the joint, as this filter's gates always were (``blocks_from_joint``:
+    bit-identical estimates).
 
     Args:
         attitude: ``Abar`` (3, 3). position: ``r_hat`` (3,). covariance: P (15 + 3n, 15 + 3n).
         positions: world positions of the candidates (m, 3). ids: their map ids (m,).
         registry: where the state's blocks sit (anchors are not in it).
     """
+    ids = np.asarray(ids, dtype=int)
 
-    def __init__(
-        self,
-        attitude: np.ndarray,
-        position: np.ndarray,
-        covariance: np.ndarray,
-        positions: np.ndarray,
-        ids: np.ndarray,
-        registry: StateRegistry,
-    ) -> None:
-        self.attitude = attitude
-        self.position = position
-        self.covariance = covariance
-        self.positions = positions
-        self.ids = np.asarray(ids, dtype=int)
-        self.registry = registry
+    def measure(indices: np.ndarray) -> LandmarkMeasurement:
+        predicted = predict(attitude, position, positions[indices])
+        return linearised(attitude, predicted, ids[indices])
 
-    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        predicted = predict(self.attitude, self.position, self.positions[indices])
-        jacobian = sparse_sensitivity(self.attitude, predicted, self.registry, self.ids[indices])
-        columns, values = jacobian.columns, jacobian.values
-        joint = values @ self.covariance[np.ix_(columns, columns)] @ values.T
-        return predicted, 0.5 * (joint + joint.T)
-
-    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        predicted, joint = self.joint(indices)
-        count = len(predicted)
-        blocks = joint.reshape(count, 3, count, 3)[np.arange(count), :, np.arange(count), :]
-        return predicted, blocks
+    return LandmarkPredictor(registry, covariance, measure, blocks_from_joint=True)

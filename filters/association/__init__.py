@@ -20,12 +20,7 @@ and the nearest-neighbour baseline), ``policy`` (``AssociationPolicy``, ``ScanAs
 likely joint interpretations of a scan, for multi-hypothesis estimators).
 """
 
-from filters.association.compatibility import (
-    Innovation,
-    chi2_gate,
-    individual_compatibility,
-    innovation_statistics,
-)
+from filters.association.compatibility import chi2_gate, individual_compatibility
 from filters.association.jcbb import (
     AssociationResult,
     associate_jcbb,
@@ -43,7 +38,6 @@ __all__ = [
     "AssociationPolicy",
     "AssociationResult",
     "Decision",
-    "Innovation",
     "Predictor",
     "Reason",
     "ScanAssociation",
@@ -51,5 +45,4 @@ __all__ = [
     "associate_nearest_neighbour",
     "chi2_gate",
     "individual_compatibility",
-    "innovation_statistics",
 ]

@@ -1,6 +1,6 @@
 """Individual compatibility: the chi-square gate of one (measurement, landmark) pair
-(Neira and Tardos 2001, eq. (8)), the input checks every association call shares, and the
-innovation statistics (stacked and per group NIS) every estimator records alike.
+(Neira and Tardos 2001, eq. (8)) and the input checks every association call shares. (The
+innovation statistics of an update are the Kalman core's: ``filters.kalman``.)
 
 The innovation of pairing measurement ``j`` with landmark ``i`` is ``nu = z_j - h_i`` with
 covariance ``R_jj + P_ii - C_ji - C_ji^T`` (``C = cov(z, h)``, zero for an ordinary scan).
@@ -8,7 +8,6 @@ covariance ``R_jj + P_ii - C_ji - C_ji^T`` (``C = cov(z, h)``, zero for an ordin
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -129,59 +128,3 @@ def individual_compatibility(
                     distances[j, i] = np.inf
     distances = np.where(np.isfinite(distances) & (distances >= 0), distances, np.inf)
     return distances
-
-
-@dataclass(frozen=True)
-class Innovation:
-    """The innovation statistics of one update.
-
-    Attributes:
-        nis: stacked ``nu^T S^-1 nu`` of the whole update (dimensionless).
-        dof: its degrees of freedom, the number of stacked measurement rows m.
-        group_nis: NIS of each group against its own diagonal block of S, shape (G,).
-        group_dof: rows of each group, shape (G,).
-    """
-
-    nis: float
-    dof: int
-    group_nis: np.ndarray
-    group_dof: np.ndarray
-
-
-def group_nis(residual: np.ndarray, innovation_covariance: np.ndarray, groups) -> np.ndarray:
-    """``nu_g^T S_gg^-1 nu_g`` for each group g of rows (G,)."""
-    sizes = {len(rows) for rows in groups}
-    if len(sizes) == 1 and np.array_equal(np.concatenate(groups), np.arange(residual.size)):
-        # consecutive groups of one size (a landmark each): one batched solve
-        size = sizes.pop()
-        count = residual.size // size
-        blocks = innovation_covariance.reshape(count, size, count, size)[
-            np.arange(count), :, np.arange(count), :
-        ]
-        parts = residual.reshape(count, size)
-        return np.einsum("gi,gi->g", parts, np.linalg.solve(blocks, parts[..., None])[..., 0])
-    values = np.empty(len(groups))
-    for index, rows in enumerate(groups):
-        block = innovation_covariance[np.ix_(rows, rows)]
-        values[index] = float(residual[rows] @ np.linalg.solve(block, residual[rows]))
-    return values
-
-
-def innovation_statistics(
-    residual: np.ndarray, covariance: np.ndarray, groups: list[np.ndarray]
-) -> Innovation | None:
-    """The stacked NIS ``nu^T S^-1 nu`` (dof = rows) of an innovation ``nu`` (m,) with
-    covariance ``S`` (m, m), and each group's against its own diagonal block; None when S
-    is not positive definite."""
-    residual = np.asarray(residual, dtype=float)
-    try:
-        factor = np.linalg.cholesky(0.5 * (covariance + covariance.T))
-    except np.linalg.LinAlgError:
-        return None
-    whitened = np.linalg.solve(factor, residual)
-    return Innovation(
-        nis=float(whitened @ whitened),
-        dof=int(residual.size),
-        group_nis=group_nis(residual, covariance, groups),
-        group_dof=np.array([len(group) for group in groups], dtype=int),
-    )

@@ -15,7 +15,7 @@ al. 2001). The class here sequences the steps below, each step's arithmetic in i
 - *Association* by the shared policy (``filters.association.AssociationPolicy``): the
   scan's ids when it has them (a sighting outside the ``id_gate_probability`` gate is
   rejected and counted), else JCBB on the landmarks individually compatible with some
-  sighting, with their joint predicted covariance ``H P H^T`` (``scan_update.MapPredictor``).
+  sighting, with their joint predicted covariance ``H P H^T`` (``scan_update.predictor``).
 - *Update*: all associated sightings of a scan stacked in one block-sparse update of the
   shared Kalman core (``filters.kalman.update``; each row block touches the vehicle and its
   own landmark only; ``scan_update``).
@@ -76,7 +76,6 @@ from filters.ekf_slam.motion_input import (
     planar_odometry_step,
     widen_for_gap,
 )
-from filters.ekf_slam.scan_update import MapPredictor
 from filters.state_registry import StateRegistry
 
 
@@ -269,7 +268,7 @@ class EkfSlam:
     def _scan(self, scan: LandmarkScan) -> None:
         points, noise = self.scan_inputs(scan)
         mode = self.policy.mode(scan.ids, scan.t)
-        predictor = MapPredictor(self)
+        predictor = scan_update.predictor(self)
         if mode == "ids":
             association = self.policy.by_ids(
                 scan.ids, points, noise, np.array(self.source_ids, dtype=int), predictor

@@ -55,11 +55,11 @@ from datasets.measurements import LandmarkScan, Measurement, Odometry, Sensor
 from datasets.sequence import Sequence
 from datasets.stream_clock import StreamClock
 from filters.association.hypotheses import ranked_hypotheses
+from filters.ekf_slam import scan_update
 from filters.ekf_slam.config import MultiHypothesisEkfSlamConfig
 from filters.ekf_slam.filter import EkfSlam
 from filters.ekf_slam.motion import compose_planar
 from filters.ekf_slam.motion_input import motion_gap, planar_odometry_step
-from filters.ekf_slam.scan_update import MapPredictor
 
 INTERPRETATIONS_PER_SCAN = 6
 """Interpretations of a scan each hypothesis is extended by (before the global pruning)."""
@@ -189,7 +189,11 @@ class MultiHypothesisEkfSlam:
             points, noise = ekf.scan_inputs(scan)
             if ekf.policy.mode(scan.ids, scan.t) == "ids":
                 association = ekf.policy.by_ids(
-                    scan.ids, points, noise, np.array(ekf.source_ids, dtype=int), MapPredictor(ekf)
+                    scan.ids,
+                    points,
+                    noise,
+                    np.array(ekf.source_ids, dtype=int),
+                    scan_update.predictor(ekf),
                 )
                 children.append((hypothesis.log_likelihood, hypothesis, association))
                 continue
@@ -197,7 +201,7 @@ class MultiHypothesisEkfSlam:
                 points,
                 noise,
                 len(ekf.map_ids),
-                MapPredictor(ekf),
+                scan_update.predictor(ekf),
                 gate_probability=self.config.new_landmark_probability,
                 new_landmark_log_density=self.log_density,
                 count=INTERPRETATIONS_PER_SCAN,

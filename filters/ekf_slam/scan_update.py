@@ -3,9 +3,10 @@ stacked Kalman update of a scan's associated sightings.
 
 - *Prediction* of map landmarks with the configured Jacobians (``predict``; ``standard``,
   ``first-estimate`` or ``observability-constrained``: ``observation``).
-- *Association* input (``MapPredictor``): the predictions and ``H P H^T`` with the state's
-  correlations, individually (the policy's gates) or jointly (JCBB's joint predicted
-  covariance), for ``filters.association.AssociationPolicy``.
+- *Association* input (``predictor``, the shared ``filters.landmark_predictor`` over this
+  module's ``measure``): the predictions and ``H P H^T`` with the state's correlations,
+  individually (the policy's gates) or jointly (JCBB's joint predicted covariance), for
+  ``filters.association.AssociationPolicy``.
 - *Update* (``update``): all associated sightings of a scan stacked in one block-sparse
   update of the shared Kalman core (``filters.kalman.update``; each row block touches the
   vehicle and its own landmark only, ``observation_jacobian``), with the noise the
@@ -26,38 +27,31 @@ from filters import kalman
 from filters.association import ScanAssociation
 from filters.ekf_slam.motion import VehicleMean
 from filters.ekf_slam.observation import observability_constrained, predict_observations
+from filters.landmark_predictor import LandmarkMeasurement, LandmarkPredictor
 
 if TYPE_CHECKING:
     from filters.ekf_slam.filter import EkfSlam
 
 
-class MapPredictor:
+def predictor(ekf: EkfSlam) -> LandmarkPredictor:
     """The association ``Predictor`` of the EKF's map (world landmarks seen from the
-    vehicle): predictions and ``H P H^T`` with the state's correlations."""
+    vehicle; candidates are map indices): predictions and ``H P H^T`` with the state's
+    correlations (``filters.landmark_predictor``)."""
+    return LandmarkPredictor(ekf.registry, ekf.covariance, lambda indices: measure(ekf, indices))
 
-    def __init__(self, ekf: EkfSlam) -> None:
-        self.ekf = ekf
 
-    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        ekf = self.ekf
-        d, v = ekf.dimension, ekf.vehicle_size
-        indices = np.asarray(indices, dtype=int)
-        predicted, vehicle_jac, landmark_jac = ekf.predict(indices)
-        P = ekf.covariance
-        rows = ekf.registry.indices(ekf.map_ids[indices]).reshape(-1, d)  # (n, d)
-        cross = P[:v][:, rows].transpose(1, 0, 2)  # (n, v, d): cov(vehicle, landmark)
-        own = P[rows[:, :, None], rows[:, None, :]]  # (n, d, d)
-        blocks = vehicle_jac @ P[:v, :v] @ np.swapaxes(vehicle_jac, 1, 2)
-        landmark_t = np.swapaxes(landmark_jac, 1, 2)  # (n, d, d): one per landmark
-        mixed = vehicle_jac @ cross @ landmark_t
-        blocks = blocks + mixed + np.swapaxes(mixed, 1, 2) + landmark_jac @ own @ landmark_t
-        return predicted, blocks
-
-    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        predicted, jacobian = self.ekf.observation_jacobian(indices)
-        values, columns = jacobian.values, jacobian.columns
-        joint = values @ self.ekf.covariance[np.ix_(columns, columns)] @ values.T
-        return predicted, 0.5 * (joint + joint.T)
+def measure(ekf: EkfSlam, indices: np.ndarray) -> LandmarkMeasurement:
+    """The linearised observation of map landmarks ``indices`` (``predict``): it depends
+    on the whole vehicle block and each landmark's position."""
+    indices = np.asarray(indices, dtype=int)
+    predicted, vehicle_jac, landmark_jac = predict(ekf, indices)
+    return LandmarkMeasurement(
+        predicted,
+        ekf.map_ids[indices],
+        vehicle=None,
+        vehicle_jacobian=vehicle_jac,
+        landmark_jacobian=landmark_jac,
+    )
 
 
 def predict(ekf: EkfSlam, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -85,16 +79,7 @@ def observation_jacobian(
 ) -> tuple[np.ndarray, kalman.SparseJacobian]:
     """Predicted observations (n, d) of map landmarks ``indices`` and the stacked ``H``
     (n d rows) by its non-zero columns: the vehicle block and each landmark's own."""
-    d, v = ekf.dimension, ekf.vehicle_size
-    indices = np.asarray(indices, dtype=int)
-    predicted, vehicle_jac, landmark_jac = ekf.predict(indices)
-    n = len(indices)
-    columns = ekf.registry.columns(None, ekf.map_ids[indices])  # whole vehicle, then each own
-    values = np.zeros((n * d, v + n * d))
-    values[:, :v] = vehicle_jac.reshape(n * d, v)
-    for row in range(n):
-        values[row * d : row * d + d, v + row * d : v + row * d + d] = landmark_jac[row]
-    return predicted, kalman.SparseJacobian(columns, values)
+    return predictor(ekf).jacobian(indices)
 
 
 def update(

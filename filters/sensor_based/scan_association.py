@@ -25,7 +25,7 @@ from filters.sensor_based.config import (
     PAPER_RANGE_SWITCH_M,
 )
 from filters.sensor_based.landmark_management import LandmarkManager
-from filters.sensor_based.state import FilterState, LandmarkPredictor
+from filters.sensor_based.state import FilterState, landmark_predictor
 
 
 def paper_laser_covariances(points: np.ndarray) -> np.ndarray:
@@ -94,7 +94,7 @@ def associate_scan(
     rows = np.flatnonzero(usable)
     if mode == "ids":
         sources = np.array([source_of.get(int(i), -1) for i in ids], dtype=int)
-        predictor = LandmarkPredictor(state, np.arange(len(ids)))
+        predictor = landmark_predictor(state, np.arange(len(ids)))
         found = policy.by_ids(scan_ids[rows], points[rows], covs[rows], sources, predictor)
     else:
         current = (
@@ -102,7 +102,7 @@ def associate_scan(
             if len(ids)
             else np.zeros(0, dtype=int)
         )
-        predictor = LandmarkPredictor(state, current)
+        predictor = landmark_predictor(state, current)
         found = policy.by_geometry(points[rows], covs[rows], len(current), predictor, mode)
         found = policy.distinct_new(points[rows], covs[rows], found)
         if found.search is not None and found.search.truncated:

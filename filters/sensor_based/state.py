@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from filters import kalman
+from filters.landmark_predictor import LandmarkMeasurement, LandmarkPredictor
 from filters.sensor_based.dynamics import rate_dimension
 from filters.state_registry import StateRegistry
 
@@ -168,18 +169,17 @@ class FilterState:
         self.visible = self.visible[keep_features]
 
 
-class LandmarkPredictor:
-    """The association ``Predictor`` of the robocentric map: a landmark's predicted
-    measurement is its own state (``y_i = x_i``, eq. (2)) and ``H P H^T`` its covariance."""
+def landmark_predictor(state: FilterState, landmarks: np.ndarray) -> LandmarkPredictor:
+    """The association ``Predictor`` of the robocentric map (the shared
+    ``filters.landmark_predictor``): a landmark's predicted measurement is its own position
+    feature (``y_i = x_i``, eq. (2)), a selection, so ``H P H^T`` is that feature's block
+    of the covariance. ``landmarks``: candidate index -> landmark index (into
+    ``landmark_ids``)."""
+    landmarks = np.asarray(landmarks, dtype=int)
 
-    def __init__(self, state: FilterState, landmarks: np.ndarray) -> None:
-        self.state = state
-        self.landmarks = np.asarray(landmarks, dtype=int)  # candidate index -> landmark index
+    def measure(indices: np.ndarray) -> LandmarkMeasurement:
+        chosen = landmarks[indices]
+        ids, positions = state.landmark_positions()
+        return LandmarkMeasurement(positions[chosen], ids[chosen], block=POSITION)
 
-    def individual(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        chosen = self.landmarks[np.asarray(indices, dtype=int)]
-        return self.state.landmark_positions()[1][chosen], self.state.position_blocks(chosen)
-
-    def joint(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        chosen = self.landmarks[np.asarray(indices, dtype=int)]
-        return self.state.landmark_positions()[1][chosen], self.state.position_covariance(chosen)
+    return LandmarkPredictor(state.registry, state.covariance, measure)
