@@ -154,7 +154,8 @@ def test_without_imu_deskew_the_stream_is_as_before() -> None:
 def _kiss_yaw_errors(bag, imu_deskew: bool) -> tuple[np.ndarray, dict]:
     """KISS-ICP's per-frame yaw error against the bag's truth [deg], and the sequence's
     metadata."""
-    from datasets.bags.source import BagOptions, bag_sequence
+    from datasets.bags.bag_options import BagOptions
+    from datasets.bags.source import bag_sequence
     from datasets.lidar.corner_truth import interpolate_poses
     from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
 

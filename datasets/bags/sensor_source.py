@@ -41,7 +41,12 @@ import numpy as np
 
 from datasets.bags.bag_file import iter_messages, open_bag
 from datasets.bags.convert import first_gps_origin
-from datasets.bags.ground_truth import read_ground_truth
+from datasets.bags.first_messages import imu_rate_and_noise
+from datasets.bags.ground_truth import (
+    ground_truth_from_topic,
+    initial_state_from_truth,
+    read_ground_truth,
+)
 from datasets.bags.read_report import ReadReport, ReadSettings, check_skips
 from datasets.bags.reader import read_stream
 from datasets.bags.spans import topic_spans
@@ -217,9 +222,7 @@ def sensor_sequence(
     argument: str, path: Path, settings, topics: BagTopics
 ) -> tuple[Sequence, SensorSource]:
     """The sequence of a bag without a lidar (module docstring); ``settings``:
-    ``datasets.bags.source.BagOptions``."""
-    from datasets.bags.source import _ground_truth, _imu_noise
-
+    ``datasets.bags.bag_options.BagOptions``."""
     decisions: list[str] = []
     warnings: list[str] = []
     with open_bag(path) as reader:
@@ -275,7 +278,7 @@ def sensor_sequence(
             )
         duration = max((reader.end_time - reader.start_time) * 1e-9, 1e-9)
         rates: dict[str, float] = {}
-        imu_rate, gyro_density, accel_density = _imu_noise(reader, imu_topic, path)
+        imu_rate, gyro_density, accel_density = imu_rate_and_noise(reader, imu_topic, path)
         if imu_rate:
             rates["imu"] = float(imu_rate)
         if role.evidence is not None and role.evidence.rate_hz:
@@ -299,7 +302,7 @@ def sensor_sequence(
     time_base = common_time_base(path, spans)
     if time_base is None:
         raise InputError(f"{path}: the sensor topics {', '.join(defining)} have no messages")
-    ground_truth = _ground_truth(*gt, None, topics.ground_truth, warnings)
+    ground_truth = ground_truth_from_topic(*gt, None, topics.ground_truth, warnings)
     if topics.unnamed_truth:
         warnings.append(
             f"no ground truth: pose topic(s) {', '.join(topics.unnamed_truth)} not taken "
@@ -428,12 +431,10 @@ def _start(
 ) -> tuple[InitialState, str]:
     """The initial state and the decision line saying where it comes from (module
     docstring)."""
-    from datasets.bags.source import _initial_state
-
     start_s = time_base.start_s
     truth = ground_truth.pose if ground_truth is not None else None
     if gps_topic is None and truth is not None:
-        initial = _initial_state(start_s, truth)
+        initial = initial_state_from_truth(start_s, truth)
         return initial, f"start: from the truth topic at t={initial.t:.3f} (its frame is the world)"
     with open_bag(path) as reader:
         quaternion, sigma, orientation_text = None, 1e-3, ""
