@@ -1,12 +1,14 @@
 """What stands behind a bag's or a scan folder's ``Sequence`` besides its stream: the front
-end that made its odometry and corners, and what the last pass over the stream skipped
-(``LidarSource``), for the loader's metadata and ``workbench bag``'s front-end report to read
-once the stream has run.
+end that made its odometry and corners, and what the last pass over the stream skipped, for
+the loader's metadata and ``workbench bag``'s front-end report to read once the stream has
+run. ``LidarSource``: a bag with a lidar, or a scan folder (the KISS-ICP and corner front
+end); ``SensorSource``: a bag without one (the 2-D laser front end when its scans are used).
 """
 
 from __future__ import annotations
 
 from datasets.bags.read_report import ReadReport
+from datasets.laser2d.frontend import Laser2dFrontEnd
 from datasets.lidar.frontend import LidarFrontEnd
 
 
@@ -30,5 +32,23 @@ class LidarSource:
             self.front_end.imu_deskew_warning(),
         ]
         for line in [*self.report.lines(), *(line for line in front_end if line)]:
+            if line not in warnings:
+                warnings.append(line)
+
+
+class SensorSource:
+    """What a pass over a bag without lidar skipped (``report``), and the 2-D laser front
+    end when its scans are used (else None); ``front_end`` is None (no lidar front end) and
+    ``lidar_messages`` None (no lidar topic), as ``LidarSource`` names them."""
+
+    front_end = None
+    lidar_messages = None
+
+    def __init__(self, laser_front_end: Laser2dFrontEnd | None = None) -> None:
+        self.laser_front_end = laser_front_end
+        self.report = ReadReport()
+
+    def record_warnings(self, warnings: list[str]) -> None:
+        for line in self.report.lines():
             if line not in warnings:
                 warnings.append(line)
