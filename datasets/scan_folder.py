@@ -34,12 +34,9 @@ from pydantic import ConfigDict, Field
 from datasets.bags.pointcloud2 import TIME_FIELDS, relative_point_seconds
 from datasets.bags.sequence_sources import LidarSource
 from datasets.errors import InputError
-from datasets.lidar.frontend import (
-    LidarFrontEnd,
-    LidarSourceOptions,
-    describe_lidar_options,
-    with_front_end,
-)
+from datasets.lidar.frontend import LidarFrontEnd
+from datasets.lidar.frontend_settings import LidarSourceOptions, describe_lidar_options
+from datasets.lidar.frontend_stream import with_front_end
 from datasets.lidar.kiss_icp_odometry import pose_time
 from datasets.lidar.sweep_times import point_times_for
 from datasets.lidar.sweep_timing import SweepTimingDecision, decide_sweep_timing

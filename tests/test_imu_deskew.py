@@ -1,5 +1,5 @@
 """The IMU deskew (datasets.lidar.imu_deskew) against closed forms, and its place in the
-front end's stream (datasets.lidar.frontend.with_front_end)."""
+front end's stream (datasets.lidar.frontend_stream.with_front_end)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ import pytest
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
-from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, with_front_end
+from datasets.lidar.frontend import LidarFrontEnd
+from datasets.lidar.frontend_settings import FrontEndSettings
+from datasets.lidar.frontend_stream import with_front_end
 from datasets.lidar.imu_deskew import GyroBuffer, rotate_each
 from datasets.measurements import ImuSample, LandmarkScan, Odometry, PointCloud
 

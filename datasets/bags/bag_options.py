@@ -12,7 +12,7 @@ from pydantic import ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.laser2d.frontend import Laser2dFrontEndSettings
-from datasets.lidar.frontend import LidarSourceOptions, describe_lidar_options
+from datasets.lidar.frontend_settings import LidarSourceOptions, describe_lidar_options
 from datasets.rotations import matrix_from_quat_wxyz
 
 

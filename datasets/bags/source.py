@@ -55,7 +55,8 @@ from datasets.bags.topics import BagTopics, discover_topics, topic_types
 from datasets.bags.wheel_odometry import PoseSample, WheelIncrements
 from datasets.errors import InputError
 from datasets.lidar.corner_truth import read_corner_truth, sidecar_for, with_true_corner_ids
-from datasets.lidar.frontend import LidarFrontEnd, with_front_end
+from datasets.lidar.frontend import LidarFrontEnd
+from datasets.lidar.frontend_stream import with_front_end
 from datasets.measurements import Sensor
 from datasets.options import build_model, nest_dotted
 from datasets.sequence import NoiseSpec, Sequence

@@ -33,7 +33,7 @@ import typer
 
 from datasets.errors import InputError
 from datasets.lidar.corner_truth import with_true_corner_ids
-from datasets.lidar.frontend import HEADING_CHECK_FRAMES
+from datasets.lidar.frontend_diagnostics import HEADING_CHECK_FRAMES
 from datasets.options import build_model, nest_dotted, parse_assignments
 from workbench.completion import estimator_names
 from workbench.estimator_settings import settings_by_estimator
