@@ -23,7 +23,8 @@ import numpy as np
 from datasets.bags.read_report import ReadReport, ReadSettings
 from datasets.bags.reader import read_stream
 from datasets.lidar.corner_truth import read_corner_truth, score_corners, sidecar_for
-from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd
+from datasets.lidar.frontend import LidarFrontEnd
+from datasets.lidar.frontend_settings import FrontEndSettings
 from datasets.lidar.kiss_icp_odometry import KissIcpSettings
 from datasets.synthetic_lidar import write_lidar_bag
 

@@ -27,9 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
+from datasets.bags.bag_options import BagOptions
+from datasets.bags.source import bag_sequence
 from datasets.lidar.corner_truth import interpolate_poses, with_true_corner_ids
 from datasets.measurements import LandmarkScan, Odometry
+from datasets.options import nest_dotted
 from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
 from datasets.synthetic_lidar import write_lidar_bag
 from workbench.metrics.summary import compute_metrics, smoothed_key

@@ -59,7 +59,7 @@ def front_end_speed(frames: int, rounds: int, data: dict[str, str]):
     from kiss_icp.config import KISSConfig
     from kiss_icp.kiss_icp import KissICP
 
-    from datasets.bags.source import nest_dotted
+    from datasets.options import nest_dotted
     from datasets.scan_folder import ScanFolderOptions, read_scan, scans_sequence
 
     files = sorted(CLIP.glob("*.pcd"))[:frames]

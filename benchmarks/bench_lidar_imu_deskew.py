@@ -22,10 +22,12 @@ from pathlib import Path
 import numpy as np
 
 import datasets.lidar.frontend as frontend
-from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
+from datasets.bags.bag_options import BagOptions
+from datasets.bags.source import bag_sequence
 from datasets.lidar.corner_truth import interpolate_poses
 from datasets.lidar.kiss_icp_odometry import KissIcpOdometry
 from datasets.measurements import Odometry, PointCloud
+from datasets.options import nest_dotted
 from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
 from datasets.synthetic_lidar import write_lidar_bag
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from datasets.bags.source import nest_dotted
+from datasets.options import nest_dotted
 from datasets.rotations import so3_exp
 from datasets.scan_folder import ScanFolderOptions, read_scan, scans_sequence
 

@@ -2,6 +2,7 @@
 
 Values are read as YAML scalars (``true``, ``3``, ``0.5``, ``[1, 2]``) and validated by the
 model, so every loader and estimator gets typed options and one style of error message.
+Dotted keys address nested models (``kiss.voxel_size_m=0.5``, ``nest_dotted``).
 """
 
 from __future__ import annotations
@@ -37,6 +38,24 @@ def yaml_value(text: str) -> object:
         return yaml_text(text, "value") if text != "" else ""
     except InputError:
         return text
+
+
+def nest_dotted(options: dict[str, str]) -> dict[str, object]:
+    """``{"kiss.voxel_size_m": "0.5"}`` -> ``{"kiss": {"voxel_size_m": 0.5}}`` (YAML values),
+    at any depth (``laser.corner.min_range_m``)."""
+    nested: dict[str, object] = {}
+    for key, value in options.items():
+        *heads, last = key.split(".")
+        group = nested
+        for depth, head in enumerate(heads):
+            group.setdefault(head, {})
+            if not isinstance(group[head], dict):
+                raise InputError(
+                    f"--data {key}: '{'.'.join(heads[: depth + 1])}' is not a group of options"
+                )
+            group = group[head]  # type: ignore[assignment]
+        group[last] = yaml_value(value)
+    return nested
 
 
 def _problem(item: dict) -> str:

@@ -40,6 +40,13 @@ def matrix_from_quat_wxyz(quat_wxyz: np.ndarray) -> np.ndarray:
     return rotation_from_quat_wxyz(quat_wxyz).as_matrix()
 
 
+def yaw_from_quat_wxyz(quaternion: np.ndarray) -> float:
+    """Yaw [rad] of a quaternion (w, x, y, z) of any nonzero norm: the angle of the body x
+    axis projected on the world x-y plane, from world x towards world y."""
+    rotation = matrix_from_quat_wxyz(quaternion / np.linalg.norm(quaternion))
+    return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+
+
 def quat_wxyz_from_matrix(matrix: np.ndarray) -> np.ndarray:
     """(w, x, y, z) quaternion(s) with w >= 0 from rotation matrix/matrices."""
     return quat_wxyz_from_rotation(Rotation.from_matrix(np.asarray(matrix, dtype=float)))

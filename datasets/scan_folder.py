@@ -32,19 +32,16 @@ import numpy as np
 from pydantic import ConfigDict, Field
 
 from datasets.bags.pointcloud2 import TIME_FIELDS, relative_point_seconds
-from datasets.bags.source import LidarSource, nest_dotted
+from datasets.bags.sequence_sources import LidarSource
 from datasets.errors import InputError
-from datasets.lidar.frontend import (
-    LidarFrontEnd,
-    LidarSourceOptions,
-    describe_lidar_options,
-    with_front_end,
-)
+from datasets.lidar.frontend import LidarFrontEnd
+from datasets.lidar.frontend_settings import LidarSourceOptions, describe_lidar_options
+from datasets.lidar.frontend_stream import with_front_end
 from datasets.lidar.kiss_icp_odometry import pose_time
 from datasets.lidar.sweep_times import point_times_for
 from datasets.lidar.sweep_timing import SweepTimingDecision, decide_sweep_timing
 from datasets.measurements import PointCloud, Sensor
-from datasets.options import build_model
+from datasets.options import build_model, nest_dotted
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import GroundTruth, StateHistory
 from datasets.text_files import text_lines

@@ -1,5 +1,5 @@
 """The IMU deskew (datasets.lidar.imu_deskew) against closed forms, and its place in the
-front end's stream (datasets.lidar.frontend.with_front_end)."""
+front end's stream (datasets.lidar.frontend_stream.with_front_end)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ import pytest
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
-from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd, with_front_end
+from datasets.lidar.frontend import LidarFrontEnd
+from datasets.lidar.frontend_settings import FrontEndSettings
+from datasets.lidar.frontend_stream import with_front_end
 from datasets.lidar.imu_deskew import GyroBuffer, rotate_each
 from datasets.measurements import ImuSample, LandmarkScan, Odometry, PointCloud
 
@@ -154,7 +156,8 @@ def test_without_imu_deskew_the_stream_is_as_before() -> None:
 def _kiss_yaw_errors(bag, imu_deskew: bool) -> tuple[np.ndarray, dict]:
     """KISS-ICP's per-frame yaw error against the bag's truth [deg], and the sequence's
     metadata."""
-    from datasets.bags.source import BagOptions, bag_sequence
+    from datasets.bags.bag_options import BagOptions
+    from datasets.bags.source import bag_sequence
     from datasets.lidar.corner_truth import interpolate_poses
     from datasets.rotations import matrix_from_quat_wxyz, so3_exp, so3_log
 

@@ -202,8 +202,8 @@ def test_on_the_real_clip_the_fit_is_recorded_and_the_stated_default_stands():
     as what it is (raw sweeps timed by azimuth, the default ``point_times=auto`` decides
     so), a stretch of increments after the warm-up gets the fitted 2.6 mrad of rotation
     noise over the stated 2 mrad before the fit falls back to zero."""
-    from datasets.bags.source import nest_dotted
     from datasets.measurements import Odometry
+    from datasets.options import nest_dotted
     from datasets.scan_folder import ScanFolderOptions, scans_sequence
 
     sequence, source = scans_sequence(

@@ -155,12 +155,9 @@ def test_heading_warning_only_for_untimed_clouds_and_a_significant_disagreement(
     """The rule of ``LidarFrontEnd.heading_warning`` on its own: clouds mostly without
     per-point times, and a corner yaw-rate disagreement beyond three standard errors, fitted
     over the first ``HEADING_CHECK_FRAMES`` frames and once per number of frames."""
-    from datasets.lidar.frontend import (
-        HEADING_CHECK_FRAMES,
-        FrontEndFrame,
-        FrontEndSettings,
-        LidarFrontEnd,
-    )
+    from datasets.lidar.frontend import FrontEndFrame, LidarFrontEnd
+    from datasets.lidar.frontend_diagnostics import HEADING_CHECK_FRAMES
+    from datasets.lidar.frontend_settings import FrontEndSettings
 
     calls = []
 

@@ -164,7 +164,7 @@ def test_on_the_real_clip_azimuth_times_take_away_the_corners_yaw_disagreement()
     is no longer distinguishable from zero (-0.18 +- 0.27 deg/s). The default run says so in
     its warnings (printed and in metrics.json), naming the option; the deskewed one does not
     warn."""
-    from datasets.bags.source import nest_dotted
+    from datasets.options import nest_dotted
     from datasets.scan_folder import ScanFolderOptions, scans_sequence
 
     figures, warnings = {}, {}

@@ -66,7 +66,8 @@ def test_the_warm_up_gives_up_at_its_limit_and_the_front_end_warns():
     """Corners that never accept the increments (8 cm off in every frame) inflate until
     LIMIT_FRAMES, then nothing more is inflated, and the front end says so in a warning
     (which the bag and scan loaders add to the sequence's warnings)."""
-    from datasets.lidar.frontend import FrontEndSettings, LidarFrontEnd
+    from datasets.lidar.frontend import LidarFrontEnd
+    from datasets.lidar.frontend_settings import FrontEndSettings
     from datasets.lidar.motion_settling import LIMIT_FRAMES
 
     rng = np.random.default_rng(5)

@@ -143,7 +143,7 @@ DATASETS: tuple[DatasetEntry, ...] = (
         "ROS 1 .bag / ROS 2 bag (sqlite3, mcap): clouds, IMU, GPS; KISS-ICP odometry and corner landmarks; truth from an Odometry/PoseStamped topic",
         argument="PATH",
         examples=("bag:corridor.bag",),
-        describe_target="datasets.bags.source:describe",
+        describe_target="datasets.bags.bag_options:describe",
     ),
     DatasetEntry(
         "scans",

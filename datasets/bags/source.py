@@ -34,273 +34,32 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from pydantic import ConfigDict, Field
 
-from datasets.bags.bag_file import iter_messages, open_bag
-from datasets.bags.convert import MAX_ACCEL_M_S2, MAX_GYRO_RAD_S, first_gps_origin
-from datasets.bags.ground_truth import read_ground_truth
-from datasets.bags.message_types import ODOMETRY, POINTCLOUD2
-from datasets.bags.pointcloud2 import MalformedCloud, decode_pointcloud2
+from datasets.bags.bag_file import open_bag
+from datasets.bags.bag_options import BagOptions, extrinsic_matrix
+from datasets.bags.convert import first_gps_origin
+from datasets.bags.first_messages import bag_sweep_timing, imu_rate_and_noise
+from datasets.bags.ground_truth import (
+    ground_truth_from_topic,
+    initial_state_from_truth,
+    read_ground_truth,
+)
+from datasets.bags.message_types import ODOMETRY
 from datasets.bags.read_report import ReadReport, ReadSettings, check_skips
 from datasets.bags.reader import read_stream
-from datasets.bags.spans import lidar_sweep_period, max_point_time, start_at_first_pose, topic_spans
+from datasets.bags.sequence_sources import LidarSource
+from datasets.bags.spans import max_point_time, start_at_first_pose, topic_spans
 from datasets.bags.time_base import common_time_base
 from datasets.bags.topic_roles import OdometryRole, choose_odometry, not_wheel_words
 from datasets.bags.topics import BagTopics, discover_topics, topic_types
 from datasets.bags.wheel_odometry import PoseSample, WheelIncrements
 from datasets.errors import InputError
-from datasets.laser2d.frontend import Laser2dFrontEndSettings
-from datasets.lidar.corner_truth import (
-    CornerTruth,
-    interpolate_poses,
-    read_corner_truth,
-    sidecar_for,
-    with_true_corner_ids,
-)
-from datasets.lidar.frontend import (
-    LidarFrontEnd,
-    LidarSourceOptions,
-    describe_lidar_options,
-    with_front_end,
-)
-from datasets.lidar.sweep_timing import SweepTimingDecision, decide_sweep_timing
-from datasets.measurements import PointCloud, Sensor
-from datasets.options import build_model, yaml_value
-from datasets.rotations import matrix_from_quat_wxyz
-from datasets.sequence import InitialState, NoiseSpec, Sequence
-from datasets.state import Frame, GroundTruth, LandmarkMap, StateHistory
-from datasets.trajectory import Trajectory
-from datasets.truth_quality import assess_trajectory
-
-
-class BagOptions(LidarSourceOptions):
-    """``--data`` options of ``bag:PATH`` (nested ones as ``kiss.voxel_size_m=0.5``, ``corner.directions=true``)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    lidar_topic: str | None = Field(None, description="PointCloud2 topic (default: the only one)")
-    max_missing_fraction: float = Field(
-        0.01,
-        ge=0,
-        le=1,
-        description="fewer messages read on a topic than the bag's index lists is a warning; "
-        "more than this fraction missing is an error (a damaged bag)",
-    )
-    imu_topic: str | None = Field(None, description="Imu topic (default: the only one, if any)")
-    ground_truth_topic: str | None = Field(
-        None,
-        description="Odometry/PoseStamped topic to score against (default: none; a pose topic "
-        "is never taken as truth unless named: it may be wheel odometry or another estimator)",
-    )
-    max_skipped_fraction: float = Field(
-        0.05,
-        ge=0,
-        le=1,
-        description="messages skipped on a topic (NaN IMU samples, non-finite poses, empty "
-        "clouds, stamps going back) are counted warnings; more than this fraction is an error",
-    )
-    gps_topic: str | None = Field(
-        None, description="NavSatFix topic (default: the only one, if any)"
-    )
-    imu: bool = Field(True, description="use the IMU topic when there is one")
-    imu_deskew: bool = Field(
-        True,
-        description="with an IMU topic, deskew clouds that carry per-point times by the "
-        "gyro's rotation over the sweep (datasets.lidar.imu_deskew) instead of KISS-ICP's "
-        "constant-velocity prediction; frames the IMU does not cover fall back to the latter "
-        "and are counted in the warnings",
-    )
-    gps: bool = Field(True, description="use the NavSatFix topic when there is one")
-    gps_sigma_m: float = Field(
-        1.0, gt=0, description="GPS std when a fix carries no covariance [m]"
-    )
-    gyro_noise_density: float | None = Field(
-        None, gt=0, description="[rad/s/sqrt(Hz)] (default: from the Imu covariance, else 1.7e-4)"
-    )
-    accel_noise_density: float | None = Field(
-        None, gt=0, description="[m/s^2/sqrt(Hz)] (default: from the Imu covariance, else 2e-3)"
-    )
-    gyro_bias_walk: float = Field(
-        2e-5,
-        gt=0,
-        description="gyro bias random walk [rad/s^2/sqrt(Hz)] (bags do not say; a MEMS-class value)",
-    )
-    accel_bias_walk: float = Field(
-        3e-4, gt=0, description="accelerometer bias random walk [m/s^3/sqrt(Hz)] (bags do not say)"
-    )
-    gyro_bias_sigma_rad_s: float = Field(
-        0.01, gt=0, description="std of the initial gyro bias [rad/s]"
-    )
-    accel_bias_sigma_m_s2: float = Field(
-        0.1, gt=0, description="std of the initial accelerometer bias [m/s^2]"
-    )
-    lidar_to_body: tuple[float, float, float, float, float, float, float] | None = Field(
-        None,
-        description="lidar pose in the body (IMU) frame: [x, y, z, qw, qx, qy, qz]; clouds are moved into the body frame (also levels a tilted lidar for the corner slab)",
-    )
-    reorder_window_s: float = Field(
-        1.0, ge=0, description="how far stamps may lag bag order and still be reordered [s]"
-    )
-    odometry_topic: str | None = Field(
-        None,
-        description="wheel-odometry topic (nav_msgs/Odometry, or a PoseStamped / "
-        "PoseWithCovarianceStamped topic, differenced); default: decided from the bag's "
-        "Odometry topics by their frames, rates, covariances, jumps and names (printed); used "
-        "as input where no lidar odometry is, never as truth",
-    )
-    wheel_odometry: bool = Field(
-        True, description="use wheel odometry (odometry_topic or the one decided) as an input"
-    )
-    odometry_noise: str = Field(
-        "auto",
-        description="wheel-odometry increment covariance: 'auto' (the messages' twist "
-        "covariance on the axes where it is meaningful, else the stated default model), "
-        "'twist', 'model' (datasets.bags.wheel_odometry.WHEEL_ODOMETRY_NOISE) or a YAML model "
-        "file from `workbench calibrate-noise`",
-    )
-    odometry_max_rate_hz: float | None = Field(
-        10.0,
-        gt=0,
-        description="wheel-odometry increments are composed to at most this rate [Hz] (the "
-        "smoothers open a keyframe at each); null: one per message",
-    )
-    laser_topic: str | None = Field(
-        None,
-        description="sensor_msgs/LaserScan topic (default: the only one, if any); 'none': "
-        "do not use a 2-D laser",
-    )
-    laser_to_body: tuple[float, float, float] | None = Field(
-        None,
-        description="2-D laser pose in the body frame: [x, y, theta] [m, m, rad] (default: "
-        "the body frame; the bag's /tf_static is not read)",
-    )
-    laser: Laser2dFrontEndSettings = Field(
-        default_factory=Laser2dFrontEndSettings,
-        description="2-D laser front end (LaserScan bags), as laser.KEY=VALUE and "
-        "laser.corner.KEY=VALUE (datasets.laser2d)",
-    )
-
-
-def nest_dotted(options: dict[str, str]) -> dict[str, object]:
-    """``{"kiss.voxel_size_m": "0.5"}`` -> ``{"kiss": {"voxel_size_m": 0.5}}`` (YAML values),
-    at any depth (``laser.corner.min_range_m``)."""
-    nested: dict[str, object] = {}
-    for key, value in options.items():
-        *heads, last = key.split(".")
-        group = nested
-        for depth, head in enumerate(heads):
-            group.setdefault(head, {})
-            if not isinstance(group[head], dict):
-                raise InputError(
-                    f"--data {key}: '{'.'.join(heads[: depth + 1])}' is not a group of options"
-                )
-            group = group[head]  # type: ignore[assignment]
-        group[last] = yaml_value(value)
-    return nested
-
-
-class LidarSource:
-    """A bag or scan folder with its front end; remembers what the last pass skipped."""
-
-    def __init__(self, front_end: LidarFrontEnd, lidar_messages: int | None = None) -> None:
-        """``lidar_messages``: the clouds the bag's index lists on its lidar topic (for a
-        progress bar; None where unknown)."""
-        self.front_end = front_end
-        self.report = ReadReport()
-        self.lidar_messages = lidar_messages
-
-    def record_warnings(self, warnings: list[str]) -> None:
-        """Add the last pass's skips and the front end's heading, warm-up and IMU deskew
-        warnings to ``warnings`` (``datasets.Sequence`` metadata), each once however often
-        the stream is read."""
-        front_end = [
-            self.front_end.heading_warning(),
-            self.front_end.settling_warning(),
-            self.front_end.imu_deskew_warning(),
-        ]
-        for line in [*self.report.lines(), *(line for line in front_end if line)]:
-            if line not in warnings:
-                warnings.append(line)
-
-
-def extrinsic_matrix(pose: tuple[float, ...] | None) -> np.ndarray | None:
-    """[x, y, z, qw, qx, qy, qz] -> (4, 4), or None; ``InputError`` for a zero quaternion."""
-    if pose is None:
-        return None
-    quat = np.asarray(pose[3:], dtype=float)
-    norm = np.linalg.norm(quat)
-    if not norm > 1e-9:
-        raise InputError(f"lidar_to_body: quaternion {list(pose[3:])} has zero length")
-    matrix = np.eye(4)
-    matrix[:3, :3] = matrix_from_quat_wxyz(quat / norm)
-    matrix[:3, 3] = pose[:3]
-    return matrix
-
-
-def _ground_truth(
-    times: np.ndarray,
-    positions: np.ndarray,
-    quats: np.ndarray,
-    truth: CornerTruth | None,
-    topic: str | None,
-    warnings: list[str],
-) -> GroundTruth | None:
-    """The named truth topic's poses and the sidecar's corners, or None without poses: the
-    sidecar's corners are in the truth topic's world frame, while without it the first body
-    frame is the world, so a map scored against them would compare two frames (a 9 m
-    "landmark RMSE" on a 3 s corridor bag whose map is fine). Where the topic cannot be
-    trusted (``datasets.truth_quality``: dropouts, freezes, jumps, ...) is excluded from
-    the scoring and said in ``warnings``."""
-    if len(times) < 2:
-        return None
-    pose = Trajectory(times, positions, quats)
-    landmarks = (
-        LandmarkMap(ids=truth.ids.copy(), positions=truth.positions.copy(), frame=Frame.WORLD)
-        if truth is not None
-        else None
-    )
-    excluded, lines = assess_trajectory(times, positions, quats, f"truth topic {topic}")
-    warnings.extend(lines)
-    return GroundTruth(history=StateHistory(pose=pose), landmarks=landmarks, excluded=excluded)
-
-
-def _initial_state(start_s: float, truth: Trajectory | None) -> InitialState:
-    """At ``start_s`` (the start of the common time base): from the ground truth there when
-    the bag has one (velocity by differences); otherwise the first body frame defines the
-    world."""
-    if truth is None or len(truth) < 2:
-        return InitialState(
-            t=start_s, position=np.zeros(3), rotation=np.array([1.0, 0.0, 0.0, 0.0]), velocity=None
-        )
-    t0 = max(start_s, float(truth.t[0]))
-    step = float(np.median(np.diff(truth.t)))
-    positions, quats = interpolate_poses(truth, np.array([t0, t0 + step]))
-    velocity = (positions[1] - positions[0]) / step
-    return InitialState(t=t0, position=positions[0], rotation=quats[0], velocity=velocity)
-
-
-def _imu_noise(
-    reader, topic: str | None, path: Path
-) -> tuple[float | None, float | None, float | None]:
-    """IMU rate and continuous-time noise densities from the first message's covariances
-    (a discrete std sigma at rate f is a density sigma / sqrt(f)); None where unknown."""
-    if topic is None:
-        return None, None, None
-    info = reader.topics[topic]
-    duration = (reader.end_time - reader.start_time) * 1e-9
-    rate = info.msgcount / duration if duration > 0 and info.msgcount > 1 else None
-    # a message that does not decode is passed over here: the stream counts it
-    for _, _, _, message in iter_messages(reader, path, [topic], report=ReadReport()):
-        gyro_var = float(np.asarray(message.angular_velocity_covariance)[0])
-        accel_var = float(np.asarray(message.linear_acceleration_covariance)[0])
-        if rate is None:
-            return None, None, None
-        # used only when positive and below the square of the largest plausible reading: a
-        # corrupted first message would otherwise set every estimator's noise
-        gyro = np.sqrt(gyro_var / rate) if 0 < gyro_var <= MAX_GYRO_RAD_S**2 else None
-        accel = np.sqrt(accel_var / rate) if 0 < accel_var <= MAX_ACCEL_M_S2**2 else None
-        return rate, gyro, accel
-    return rate, None, None
+from datasets.lidar.corner_truth import read_corner_truth, sidecar_for, with_true_corner_ids
+from datasets.lidar.frontend import LidarFrontEnd
+from datasets.lidar.frontend_stream import with_front_end
+from datasets.measurements import Sensor
+from datasets.options import build_model, nest_dotted
+from datasets.sequence import NoiseSpec, Sequence
 
 
 def load_bag(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
@@ -347,7 +106,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
                 / max((reader.end_time - reader.start_time) * 1e-9, 1e-9)
             )
         }
-        imu_rate, gyro_density, accel_density = _imu_noise(reader, imu_topic, path)
+        imu_rate, gyro_density, accel_density = imu_rate_and_noise(reader, imu_topic, path)
         if imu_rate:
             rates["imu"] = float(imu_rate)
         max_point_time_s = max_point_time(reader, path, topics.lidar)
@@ -393,7 +152,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     sidecar = sidecar_for(path)
     truth = read_corner_truth(sidecar) if sidecar.is_file() else None
     truth_warnings: list[str] = []
-    ground_truth = _ground_truth(*gt, truth, topics.ground_truth, truth_warnings)
+    ground_truth = ground_truth_from_topic(*gt, truth, topics.ground_truth, truth_warnings)
     read_settings = ReadSettings(
         time_unit=settings.point_time_unit,
         max_point_time_s=max_point_time_s,
@@ -478,7 +237,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         stream=stream,
         ground_truth=ground_truth,
         noise=noise,
-        initial_state=_initial_state(
+        initial_state=initial_state_from_truth(
             time_base.start_s if time_base else start_s,
             ground_truth.pose if ground_truth else None,
         ),
@@ -566,45 +325,3 @@ def wheel_increments(measurements, wheel: OdometryRole, settings: BagOptions, ti
                 yield odometry
         else:
             yield measurement
-
-
-def bag_sweep_timing(
-    reader, path: Path, topic: str, settings: BagOptions, max_point_time_s: float
-) -> SweepTimingDecision:
-    """How the clouds of ``topic`` are timed (``datasets.lidar.sweep_timing``), from its
-    first ``settings.sweep.frames`` decodable, non-empty clouds in stamp order, in the lidar
-    frame (before ``lidar_to_body``: azimuths are the lidar's). One sweep is the topic's
-    median frame interval (``lidar_sweep_period``); none is read for ``point_times=field``.
-    ``InputError`` (from ``lidar_sweep_period``) where azimuth times need a period and the
-    topic gives none."""
-    if settings.point_times == "field":
-        return decide_sweep_timing([], 0.0, "field", settings.sweep)
-    try:
-        sweep_s = lidar_sweep_period(reader, path, topic)
-    except InputError:
-        if settings.point_times == "azimuth":
-            raise
-        sweep_s = 0.0  # a single cloud: nothing to compare, the decision says so
-    clouds: dict[float, PointCloud] = {}
-    # broken clouds are passed over here (a throwaway report): the stream counts them
-    for _, msgtype, stamp, message in iter_messages(reader, path, [topic], report=ReadReport()):
-        if msgtype != POINTCLOUD2 or stamp in clouds:
-            continue
-        where = f"{path}, topic {topic}, t={stamp:.9f}"
-        try:
-            cloud = decode_pointcloud2(
-                message, stamp, where, settings.point_time_unit, max_point_time_s
-            )
-        except MalformedCloud:
-            continue
-        if len(cloud.points):
-            clouds[stamp] = PointCloud(t=stamp, points=cloud.points, point_times=cloud.point_times)
-        if len(clouds) >= settings.sweep.frames:
-            break
-    ordered = [clouds[stamp] for stamp in sorted(clouds)]
-    return decide_sweep_timing(ordered, sweep_s, settings.point_times, settings.sweep)
-
-
-def describe() -> list[str]:
-    """Option lines for ``workbench list --verbose``."""
-    return describe_lidar_options(BagOptions)

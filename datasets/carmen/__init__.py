@@ -43,8 +43,7 @@ from datasets.sequence import Sequence
 
 def load(argument: str | None, seed: int, options: dict[str, str]) -> Sequence:
     """Load ``carmen:FILE`` (``seed`` is unused: real data)."""
-    from datasets.bags.source import nest_dotted
-    from datasets.options import build_model
+    from datasets.options import build_model, nest_dotted
 
     if not argument:
         raise InputError(

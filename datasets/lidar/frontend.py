@@ -8,23 +8,27 @@ IMU topic), by the gyro's rotation over the sweep (``datasets.lidar.imu_deskew``
 
 Results are cached by frame index: KISS-ICP is sequential, so the cache is always a prefix
 of the frames and a second pass over a sequence (another estimator) costs nothing.
+
+Its settings are ``datasets.lidar.frontend_settings``; what it reports on a pass (the
+settings KISS-ICP resolved, the warnings) ``datasets.lidar.frontend_diagnostics``; its
+place in a sequence's stream ``datasets.lidar.frontend_stream.with_front_end``.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
-from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.errors import InputError
 from datasets.lidar.corner_tracking import CornerTracker
-from datasets.lidar.corners import CornerConfig, Corners, azimuth_scan_indices, scan_corners
+from datasets.lidar.corners import Corners, azimuth_scan_indices, scan_corners
+from datasets.lidar.frontend_diagnostics import FrontEndDiagnostics
 from datasets.lidar.frontend_report import FrontEndReport
+from datasets.lidar.frontend_settings import FrontEndSettings
 from datasets.lidar.imu_deskew import GyroBuffer, SweepMotion
-from datasets.lidar.increment_noise import IncrementNoiseFit, yaw_rate_disagreement
+from datasets.lidar.increment_noise import IncrementNoiseFit
 from datasets.lidar.kiss_icp_odometry import (
     KissIcpOdometry,
     KissIcpSettings,
@@ -34,105 +38,8 @@ from datasets.lidar.kiss_icp_odometry import (
     time_span,
 )
 from datasets.lidar.motion_settling import MotionSettling
-from datasets.lidar.sweep_times import POINT_TIMES_DESCRIPTION, SweepOptions
 from datasets.measurements import ImuSample, Odometry, PointCloud
 from datasets.trajectory import Trajectory
-
-HEADING_DISAGREEMENT_SE = 3.0
-"""Standard errors of the corners' yaw-rate disagreement with KISS-ICP above which clouds
-without per-point times get a warning (``LidarFrontEnd.heading_warning``)."""
-
-HEADING_CHECK_FRAMES = 300
-"""Frames (30 s at 10 Hz) whose re-observations the heading warning fits."""
-
-
-class FrontEndSettings(BaseModel):
-    """What the front end computes, and how."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    odometry: bool = Field(True, description="run KISS-ICP")
-    corners: bool = Field(True, description="extract corner landmarks")
-    warmup_frames: int = Field(
-        1,
-        ge=0,
-        description="withhold the corners of this many first frames of clouds with per-point times (no motion estimate to deskew them with yet)",
-    )
-    kiss: KissIcpSettings = Field(default_factory=KissIcpSettings, description="KISS-ICP settings")
-    imu_deskew: bool = Field(
-        False,
-        description="deskew clouds with per-point times by the IMU's rotation "
-        "(datasets.lidar.imu_deskew; the stream must carry ImuSample), not KISS-ICP's "
-        "constant-velocity prediction",
-    )
-    corner: CornerConfig = Field(
-        default_factory=CornerConfig, description="corner extractor settings"
-    )
-    confirm_corners: bool = Field(
-        True,
-        description="emit a corner only once it is found again where it was in the previous frame (KISS-ICP's poses): sliding outlines are never landmarks",
-    )
-
-
-class LidarSourceOptions(BaseModel):
-    """``--data`` options every point-cloud source shares (bags and scan folders): how to
-    read per-point times, and what the front end emits."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    point_time_unit: str = Field(
-        "auto", pattern="^(auto|s|ms|us|ns)$", description="unit of per-point times"
-    )
-    point_times: Literal["auto", "field", "azimuth"] = Field(
-        "auto", description=POINT_TIMES_DESCRIPTION
-    )
-    sweep: SweepOptions = Field(
-        default_factory=SweepOptions,
-        description="spinning-lidar sweep timing, as sweep.KEY=VALUE (listed below)",
-    )
-    point_clouds: bool = Field(True, description="emit the clouds themselves in the stream")
-    max_frames: int | None = Field(None, ge=1, description="stop after this many clouds")
-    odometry: bool = Field(True, description="KISS-ICP odometry")
-    corners: bool = Field(True, description="corner landmarks")
-    warmup_frames: int = Field(
-        1, ge=0, description="withhold the corners of this many first frames (not yet deskewable)"
-    )
-    kiss: KissIcpSettings = Field(
-        default_factory=KissIcpSettings,
-        description="KISS-ICP settings, as kiss.KEY=VALUE (listed below)",
-    )
-    corner: CornerConfig = Field(
-        default_factory=CornerConfig,
-        description="corner extractor settings, as corner.KEY=VALUE (listed below)",
-    )
-    confirm_corners: bool = Field(
-        True,
-        description="emit a corner only once it is found again where it was in the previous frame (KISS-ICP's poses; datasets.lidar.corner_tracking): the outline of a car slides with the viewpoint and is never a landmark",
-    )
-
-    def front_end_settings(self) -> FrontEndSettings:
-        """The front end's share of these options."""
-        return FrontEndSettings(
-            **{
-                name: getattr(self, name)
-                for name in FrontEndSettings.model_fields
-                if name in type(self).model_fields
-            }
-        )
-
-
-def describe_lidar_options(model: type[LidarSourceOptions]) -> list[str]:
-    """Option lines of a lidar source for ``workbench list --verbose``: its own, then the
-    nested sweep timing, KISS-ICP and corner settings as ``sweep.KEY``, ``kiss.KEY`` and
-    ``corner.KEY``."""
-    from datasets.options import describe_model
-
-    return (
-        describe_model(model)
-        + [f"sweep.{line}" for line in describe_model(SweepOptions)]
-        + [f"kiss.{line}" for line in describe_model(KissIcpSettings)]
-        + [f"corner.{line}" for line in describe_model(CornerConfig)]
-    )
 
 
 @dataclass(frozen=True)
@@ -159,8 +66,9 @@ class FrontEndFrame:
     corner_seconds: float
 
 
-class LidarFrontEnd:
-    """KISS-ICP + corner extractor over a stream of clouds, with a prefix cache."""
+class LidarFrontEnd(FrontEndDiagnostics):
+    """KISS-ICP + corner extractor over a stream of clouds, with a prefix cache; its
+    reports on a pass (``resolved``, the warnings) are ``FrontEndDiagnostics``."""
 
     def __init__(self, settings: FrontEndSettings, sole_motion_input: bool = True) -> None:
         """``sole_motion_input``: the sequence offers no motion input but this front end's
@@ -367,119 +275,6 @@ class LidarFrontEnd:
                 points = deskew_to_end(points, times[chosen], self._odometry.last_delta())
         return scan_corners(np.ascontiguousarray(points[:, :2]), bins, config)
 
-    def resolved(self) -> dict[str, object]:
-        """What KISS-ICP runs with, for the run's metadata: max range and voxel [m], where
-        the range came from, and the covariance of its increments at the last frame (empty
-        before the first scan or without odometry)."""
-        settings = self.kiss_settings
-        if settings is None or settings.max_range_m is None or not self.frames:
-            return {}
-        voxel = settings.voxel_size_m or settings.max_range_m / 100.0
-        return {
-            "max_range_m": float(settings.max_range_m),
-            "voxel_size_m": float(voxel),
-            "max_range_source": self._odometry.range_source,
-            **self._deskew_summary(),
-            **self.settling.summary(),
-            **self.increment_noise.current.summary(),
-        }
-
-    def _deskew_summary(self) -> dict[str, object]:
-        """How the clouds were deskewed, for ``resolved``."""
-        if self.untimed_frames == len(self.frames):
-            return {"deskew": "none (no per-point times: taken as motion-compensated)"}
-        if not self.settings.imu_deskew:
-            return {"deskew": "kiss-icp" if self.settings.kiss.deskew else "off"}
-        return {
-            "deskew": "imu",
-            "imu_deskewed_frames": self.imu_deskewed_frames,
-            "imu_deskew_fallback_frames": len(self.imu_fallback_stamps),
-        }
-
-    def corner_yaw_rate(self, frames: int | None = None) -> tuple[float, float] | None:
-        """The constant yaw-rate error of KISS-ICP's poses that the corners' re-observations
-        so far imply, and its standard error (jackknife over corners) [rad/s]
-        (``increment_noise.yaw_rate_disagreement``); over the re-observations made in the
-        first ``frames`` frames when given. None without odometry or pairs."""
-        if not self.frames or any(frame.pose is None for frame in self.frames):
-            return None
-        poses = np.array([frame.pose for frame in self.frames])
-        pairs = self.tracker.stats.pairs
-        if frames is not None:
-            pairs = [pair for pair in pairs if pair.frame < frames]
-        return yaw_rate_disagreement(
-            pairs,
-            poses[:, :2, 3],
-            poses[:, :2, :2],
-            np.array([frame.t for frame in self.frames]),
-        )
-
-    def heading_warning(self) -> str | None:
-        """A warning when the corners' re-observations disagree with KISS-ICP's heading by
-        more than ``HEADING_DISAGREEMENT_SE`` standard errors (``corner_yaw_rate``) on clouds
-        that carry no per-point times, None otherwise.
-
-        Such clouds are taken as motion-compensated, and an uncompensated spinning sweep
-        read that way makes exactly this disagreement: on the real KITTI clip -0.41 +- 0.10
-        deg/s by default, the estimators 0.7 deg off in heading; its clouds are not
-        compensated (``benchmarks/kitti_clip_sweep_seam.py``), and with
-        ``point_times=azimuth`` the disagreement is -0.18 +- 0.27 deg/s. A disagreement of
-        clouds with times is left to the printed figure: either side may be wrong.
-
-        Over the first ``HEADING_CHECK_FRAMES`` frames: a constant yaw-rate error is a model
-        for a short span, and the fit's corner clustering grows with the square of the
-        pairs. Computed once per number of frames (each pass over a sequence asks again)."""
-        if not self.frames or 2 * self.untimed_frames < len(self.frames):
-            return None
-        if self._heading_checked[0] != len(self.frames):
-            self._heading_checked = (len(self.frames), self._heading_text())
-        return self._heading_checked[1]
-
-    def _heading_text(self) -> str | None:
-        """``heading_warning``'s text, computed."""
-        disagreement = self.corner_yaw_rate(HEADING_CHECK_FRAMES)
-        if disagreement is None:
-            return None
-        omega, error = (float(np.rad2deg(value)) for value in disagreement)
-        if not abs(omega) > HEADING_DISAGREEMENT_SE * error:
-            return None
-        checked = self.frames[:HEADING_CHECK_FRAMES]
-        span = checked[-1].t - checked[0].t
-        return (
-            f"the corners disagree with KISS-ICP's heading by {omega:+.2f} +- {error:.2f} deg/s "
-            f"({omega * span:+.2f} deg over the first {span:.1f} s; +- : jackknife over "
-            "corners), and "
-            f"{self.untimed_frames} of {len(self.frames)} clouds carry no per-point times, so "
-            "they were taken as motion-compensated: an uncompensated sweep read that way "
-            "does this (the estimators follow the corners in heading). If the clouds are "
-            "KITTI raw's, rerun with --data point_times=azimuth"
-        )
-
-    def settling_warning(self) -> str | None:
-        """A warning when the warm-up ended without KISS-ICP settling by the corners
-        (``motion_settling.LIMIT_FRAMES``), None otherwise."""
-        frame = self.settling.gave_up_frame
-        if frame is None:
-            return None
-        return (
-            f"warm-up: the corners never accepted KISS-ICP's increments three frames in a row "
-            f"up to frame {frame}; its first {self.settling.inflated_frames} increments and "
-            "their corners were inflated by the error the corners showed, and nothing after "
-            "(datasets.lidar.motion_settling)"
-        )
-
-    def imu_deskew_warning(self) -> str | None:
-        """A warning naming the frames the IMU deskew had to leave to KISS-ICP's
-        constant-velocity deskew (IMU samples missing over their sweep), None otherwise."""
-        stamps = self.imu_fallback_stamps
-        if not stamps:
-            return None
-        return (
-            f"IMU deskew: {len(stamps)} of {len(stamps) + self.imu_deskewed_frames} clouds "
-            f"had no IMU samples over their sweep (first at t={stamps[0]:.3f} s) and were "
-            "deskewed by KISS-ICP's constant-velocity prediction instead"
-        )
-
     @property
     def kiss_settings(self) -> KissIcpSettings | None:
         """The KISS-ICP settings in use (the max range resolved from the first scan once
@@ -517,74 +312,3 @@ def _select(corners: Corners, keep: np.ndarray) -> Corners:
         covariances=corners.covariances[keep],
         directions=None if corners.directions is None else corners.directions[keep],
     )
-
-
-def with_front_end(
-    measurements,
-    front_end: LidarFrontEnd,
-    emit_clouds: bool = True,
-    max_frames: int | None = None,
-    emit_from_s: float | None = None,
-):
-    """Interleave the front end's odometry and corner scans into a stamp-ordered stream.
-
-    Clouds stamped before ``emit_from_s`` (the sequence's start, when its first sweep began
-    before it) go through the front end but are not emitted themselves.
-
-    A frame's outputs are stamped at or after its cloud's stamp (``output_time``), and every
-    later input is stamped at or after that too, so anything queued up to the current
-    input's stamp can be released: the output stays time-ordered without a look-ahead
-    window. A cloud the IMU deskews (``waits_for_imu``) is held until an IMU sample at or
-    after its sweep end has arrived (or the next cloud, or the stream's end: the front end
-    then falls back to KISS-ICP's deskew and counts it), and meanwhile only what is stamped
-    before its outputs is released. The holding depends on the stream alone, not on the
-    front end's cache, so every pass over a sequence gives the same order. Empty corner
-    scans are not emitted. Stops before the ``max_frames + 1``-th cloud when ``max_frames``
-    is set.
-    """
-    import heapq
-    import itertools
-
-    queue: list = []
-    order = itertools.count()
-    index = 0
-    held: PointCloud | None = None  # a cloud waiting for the IMU to pass its sweep end
-    held_until = np.inf  # its outputs' stamp
-    latest_imu = -np.inf  # stamp of the latest IMU sample of this pass
-
-    def run(cloud: PointCloud) -> None:
-        nonlocal index
-        frame = front_end.frame(index, cloud)
-        index += 1
-        if frame.odometry is not None:
-            heapq.heappush(queue, (frame.t, next(order), frame.odometry))
-        if frame.corners is not None and len(frame.corners.points):
-            heapq.heappush(queue, (frame.t, next(order), frame.corners.scan(frame.t)))
-
-    for measurement in measurements:
-        if isinstance(measurement, PointCloud):
-            if max_frames is not None and index + (held is not None) >= max_frames:
-                break
-            if held is not None:
-                run(held)
-                held, held_until = None, np.inf
-            if emit_clouds and (emit_from_s is None or measurement.t >= emit_from_s):
-                heapq.heappush(queue, (measurement.t, next(order), measurement))
-            if front_end.waits_for_imu(measurement):
-                held, held_until = measurement, front_end.output_time(measurement)
-            else:
-                run(measurement)
-        else:
-            heapq.heappush(queue, (measurement.t, next(order), measurement))
-            if isinstance(measurement, ImuSample):
-                front_end.add_imu(measurement)
-                latest_imu = max(latest_imu, measurement.t)
-        if held is not None and latest_imu >= held_until:
-            run(held)
-            held, held_until = None, np.inf
-        while queue and queue[0][0] <= measurement.t and queue[0][0] < held_until:
-            yield heapq.heappop(queue)[2]
-    if held is not None:
-        run(held)
-    while queue:
-        yield heapq.heappop(queue)[2]

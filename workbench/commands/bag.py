@@ -33,8 +33,8 @@ import typer
 
 from datasets.errors import InputError
 from datasets.lidar.corner_truth import with_true_corner_ids
-from datasets.lidar.frontend import HEADING_CHECK_FRAMES
-from datasets.options import build_model, parse_assignments
+from datasets.lidar.frontend_diagnostics import HEADING_CHECK_FRAMES
+from datasets.options import build_model, nest_dotted, parse_assignments
 from workbench.completion import estimator_names
 from workbench.estimator_settings import settings_by_estimator
 from workbench.plot_formats import parse_plot_formats
@@ -274,7 +274,8 @@ def _bag_command(
     plot_formats: tuple[str, ...],
     claim: Callable[[], Path],
 ) -> list[dict]:
-    from datasets.bags.source import BagOptions, bag_sequence, nest_dotted
+    from datasets.bags.bag_options import BagOptions
+    from datasets.bags.source import bag_sequence
     from datasets.trajectory_io import write_atomic, write_tum
     from workbench.run_folder import dump_json
 
