@@ -70,7 +70,7 @@ from datasets.rotations import matrix_from_quat_wxyz
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import Frame, GroundTruth, LandmarkMap, StateHistory
 from datasets.trajectory import Trajectory
-from datasets.truth_quality import assess_trajectory
+from datasets.truth_quality.assess import assess_trajectory
 
 
 class BagOptions(LidarSourceOptions):
