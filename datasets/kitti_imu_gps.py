@@ -52,7 +52,7 @@ from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.simulation.imu import gtsam_data_folder
 from datasets.state import GroundTruth, StateHistory
 from datasets.text_files import text_lines
-from datasets.truth_quality import assess_trajectory
+from datasets.truth_quality.assess import assess_trajectory
 
 IMU_FILE = "KittiEquivBiasedImu.txt"
 GPS_FILE = "KittiGps_converted.txt"

@@ -46,7 +46,7 @@ from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import GroundTruth, StateHistory
 from datasets.text_files import text_lines
 from datasets.trajectory_io import read_tum
-from datasets.truth_quality import assess_trajectory
+from datasets.truth_quality.assess import assess_trajectory
 
 SUFFIXES = (".bin", ".pcd", ".ply")
 _PCD_TYPES = {

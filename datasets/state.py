@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from datasets.trajectory import Trajectory
-from datasets.truth_quality import TruthInterval, excluded_mask
+from datasets.truth_quality.intervals import TruthInterval, excluded_mask
 
 
 class Frame(enum.StrEnum):
@@ -209,8 +209,8 @@ class GroundTruth:
         held_out_positions: positions withheld from the estimators and kept for evaluation
             (e.g. held-out GPS fixes) as ``(t[M], positions[M, d])``, or None.
         excluded: time intervals where the truth is not trustworthy
-            (``datasets.truth_quality.assess_truth``): the metrics score nothing inside them
-            and never interpolate the truth across them. Empty: all of it is trusted.
+            (``datasets.truth_quality.assess.assess_truth``): the metrics score nothing inside
+            them and never interpolate the truth across them. Empty: all of it is trusted.
         relations: relative poses between pairs of times (``Relations``), or None. No
             loader fills it: the workbench attaches a relations file given with any
             dataset (``--data relations=FILE``).

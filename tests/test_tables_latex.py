@@ -22,15 +22,11 @@ from workbench.metrics.verdicts import (
 )
 from workbench.results.columns import COLUMNS, PRESETS, parse_table_choice
 from workbench.results.consistency import ConsistencyCell
-from workbench.results.latex import (
-    TEXT_WIDTH_PT,
-    Cell,
-    best_rows,
-    latex_tables,
-    round_to_uncertainty,
-    significant,
-    table_width_pt,
-)
+from workbench.results.latex import latex_tables
+from workbench.results.latex_cells import Cell, best_rows
+from workbench.results.latex_layout import table_width_pt
+from workbench.results.latex_rounding import round_to_uncertainty, significant
+from workbench.results.latex_width import TEXT_WIDTH_PT
 from workbench.results.summary import PairSummary, Stat
 from workbench.suite_files import load_suite_file, suite_table
 
@@ -172,7 +168,7 @@ def test_a_table_wider_than_the_page_is_split_and_every_part_fits() -> None:
         shown = {key for key in keys if f"{{{COLUMNS[key].header[0]}}}" in header}
         assert shown  # no empty part
     # each part's estimated width fits, and every column appears in some part
-    from workbench.results.latex import plan_parts
+    from workbench.results.latex_layout import plan_parts
 
     planned = plan_parts(rows, columns)
     assert len(planned) == parts

@@ -29,12 +29,9 @@ from datasets.simulation.guerreiro_sensors import relative_pose_odometry
 from datasets.simulation.trajectories import TerrainViaPointLoop
 from datasets.state import GroundTruth, StateHistory
 from datasets.trajectory import Trajectory
-from datasets.truth_quality import (
-    TruthInterval,
-    TruthKind,
-    TruthQualitySettings,
-    assess_truth,
-)
+from datasets.truth_quality.assess import assess_truth
+from datasets.truth_quality.intervals import TruthInterval, TruthKind
+from datasets.truth_quality.settings import TruthQualitySettings
 from workbench.evo_results import write_evo_results
 from workbench.metrics.ate import ate_report
 from workbench.metrics.state_errors import pose_error_series

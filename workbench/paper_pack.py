@@ -33,7 +33,9 @@ from typing import Any
 from datasets.trajectory_io import write_atomic
 from workbench.reporting import Report, ReportRows, report_rows
 from workbench.results.columns import CUSTOM, DEFAULT_TABLE, PRESETS, parse_table_choice
-from workbench.results.latex import dof_phrase, latex_escape, latex_tables, verdict_rule_latex
+from workbench.results.latex import latex_tables
+from workbench.results.latex_captions import dof_phrase, verdict_rule_latex
+from workbench.results.latex_text import latex_escape
 from workbench.results.runs import RunRecord
 from workbench.results.summary import PairSummary
 from workbench.results.tables import csv_table

@@ -23,7 +23,7 @@ from datasets.sequence import InitialState
 from datasets.state import Frame, GroundTruth, LandmarkMap, StateHistory
 from datasets.trajectory import Trajectory
 from datasets.trajectory_io import MAX_POSITION_M
-from datasets.truth_quality import assess_trajectory
+from datasets.truth_quality.assess import assess_trajectory
 
 MAX_TRUTH_SPEED_M_S = 100.0
 """Between two ground-truth poses [m/s]: 360 km/h, faster than anything a lidar bag is

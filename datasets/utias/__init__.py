@@ -51,7 +51,7 @@ Quirks handled (all counted in ``Sequence.metadata['counts']``):
   sit at each other's surveyed position), so another MRCLAM folder gets only the swaps its
   own data show; ``fix_swapped_labels=false`` keeps the file's labels. The metadata says
   which pairs were swapped.
-- *Vicon failures*: ``datasets.truth_quality.assess_truth`` judges the Vicon (headings
+- *Vicon failures*: ``datasets.truth_quality.assess.assess_truth`` judges the Vicon (headings
   repaired) against its own motion and the raw odometry: dropouts, freezes, jumps, wrong
   tracks between a jump away and back, headings against the direction of travel, motion
   the odometry contradicts. Its intervals are ``GroundTruth.excluded`` (scored nowhere,

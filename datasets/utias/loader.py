@@ -17,7 +17,7 @@ from datasets.rotations import rot2_batch
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import BlockName, Frame, GroundTruth, LandmarkMap, StateBlock, StateHistory
 from datasets.trajectory import Trajectory
-from datasets.truth_quality import TruthInterval, excluded_mask, merged_spans
+from datasets.truth_quality.intervals import TruthInterval, excluded_mask, merged_spans
 from datasets.utias.calibration import calibrate, calibrated_odometry, reference_of
 from datasets.utias.options import UtiasOptions
 from datasets.utias.recording import read_recording, repair_heading_glitches

@@ -19,7 +19,8 @@ import numpy as np
 from datasets.errors import InputError
 from datasets.odometry_calibration import Increments
 from datasets.rotations import wrap_angle
-from datasets.truth_quality import TruthQuality, assess_truth
+from datasets.truth_quality.assess import assess_truth
+from datasets.truth_quality.quality import TruthQuality
 from datasets.utias.tables import Table, first_backward, grid_times, increasing, read_table
 
 ROBOT_FILES = ("Odometry", "Groundtruth", "Measurement")

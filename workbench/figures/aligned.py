@@ -18,7 +18,7 @@ import numpy as np
 
 from datasets.errors import InputError
 from datasets.trajectory import Trajectory
-from datasets.truth_quality import TruthInterval, TruthKind, excluded_mask
+from datasets.truth_quality.intervals import TruthInterval, TruthKind, excluded_mask
 from workbench.figures.common import RunFiles
 from workbench.metrics.alignment import apply_alignment
 from workbench.metrics.ate import ate_errors, paired_trajectories

@@ -30,12 +30,8 @@ from scipy.spatial.transform import Rotation
 from datasets.errors import InputError
 from datasets.rotations import quat_wxyz_from_rotation, rotation_from_quat_wxyz, wrap_angle
 from datasets.trajectory import Trajectory
-from datasets.truth_quality import (
-    TruthInterval,
-    TruthQualitySettings,
-    excluded_mask,
-    merged_spans,
-)
+from datasets.truth_quality.intervals import TruthInterval, excluded_mask, merged_spans
+from datasets.truth_quality.settings import TruthQualitySettings
 
 DEFAULT_MAX_DIFF_S = 0.01
 """evo's default ``--t_max_diff`` [s]."""

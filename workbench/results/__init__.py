@@ -3,5 +3,6 @@
 
 Modules: ``runs`` (run folders -> ``RunRecord``, the tidy DataFrame), ``consistency`` (the
 per-run NEES/NIS series and the consistency cells), ``summary`` (one row per pair,
-``table.csv``'s columns), ``tables`` (Markdown, LaTeX, CSV, terminal).
+``table.csv``'s columns), ``tables`` (Markdown, LaTeX, CSV, terminal), ``latex`` and its
+``latex_*`` siblings (the paper tables: rounding, cells, widths, layout, captions).
 """
