@@ -307,6 +307,11 @@ class KeyframeSmoother:
         self._report_fallback()
         # Only the newest keyframe's state is needed to go on (the full estimate is O(n)).
         self.estimate_values = self.backend.values(self.motion.keys(len(self.keyframe_t) - 1), t)
+        self._after_solve(t, graph)
+
+    def _after_solve(self, t: float, graph: gtsam.NonlinearFactorGraph) -> None:
+        """Hook run after each backend update with its new factors (fixed lag checks that
+        its window took them, ``smoothers.window_health``)."""
 
     def _report_fallback(self) -> None:
         """The backend's switch from Cholesky to QR, once, as an event and a note."""

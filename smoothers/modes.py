@@ -36,7 +36,7 @@ from datasets.estimate import Estimate, EstimateRecorder
 from datasets.measurements import Sensor
 from datasets.sequence import Sequence
 from datasets.state import LandmarkMap
-from smoothers.backends import FixedLagBackend
+from smoothers.backends import FixedLagBackend, factor_keys
 from smoothers.config import BatchConfig, FixedLagConfig, Isam2Config
 from smoothers.dense_marginals import DenseQrMarginals
 from smoothers.gtsam_errors import explain, gtsam_message
@@ -46,6 +46,13 @@ from smoothers.keyframe_smoother import KeyframeSmoother
 from smoothers.lag_clock import InformationClock
 from smoothers.lag_window import WindowExports
 from smoothers.smoothed_output import with_map
+from smoothers.window_health import (
+    UNSETTLED_CHI2_PER_DOF,
+    UNSETTLED_UPDATES,
+    UNSETTLED_WINDOW_S,
+    WindowHealth,
+    new_factor_chi2_per_dof,
+)
 
 
 class SmootherIsam2(KeyframeSmoother):
@@ -162,6 +169,7 @@ class SmootherFixedLag(KeyframeSmoother):
         )
         super().__init__(config, sequence)
         self.exports = WindowExports(self.motion, self.dimension)
+        self.health = WindowHealth()
         self.causal_covariances = config.causal_covariances
 
     def _make_backend(self) -> FixedLagBackend:
@@ -177,6 +185,31 @@ class SmootherFixedLag(KeyframeSmoother):
     def _keyframe_group(self, t: float, informative: bool) -> None:
         if self.lag_clock is not None:
             self.lag_clock.advance(t, informative)
+
+    def _after_solve(self, t: float, graph: gtsam.NonlinearFactorGraph) -> None:
+        """Did the window take this update's new factors (``smoothers.window_health``)? A
+        divergence is an event and a note (``workbench.metrics.divergence`` reports it); the
+        run goes on, as a filter's would."""
+        keys = sorted(key for key in factor_keys(graph) if self.backend.contains(key))
+        if not keys:
+            return
+        statistic = new_factor_chi2_per_dof(graph, self.backend.values(keys, t))
+        if self.health.check(t, statistic):
+            began = self.health.diverged_at
+            self.recorder.event(
+                began,
+                "window_diverged",
+                reason=(
+                    f"{UNSETTLED_UPDATES} updates within {UNSETTLED_WINDOW_S:g} s did not take "
+                    f"their new factors (chi-square per dof above {UNSETTLED_CHI2_PER_DOF:g}: "
+                    + ", ".join(f"{value:.3g}" for _, value in self.health.unsettled[-3:])
+                    + ")"
+                ),
+            )
+            self.notes.append(
+                f"fixed-lag smoother: its window diverged from t={began:.3f} s "
+                f"(smoothers.window_health): updates stopped fitting their own new factors"
+            )
 
     def _before_update(self, t_new: float) -> None:
         """Export what leaves the window with this update (``smoothers.lag_window``)."""

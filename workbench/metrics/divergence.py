@@ -15,9 +15,10 @@
    or, without one, by the box's diagonal. A pose outside it is not an estimate of that
    robot (UTIAS: a 10 m arena, and a fixed-lag run 640 m outside it).
 
-3. **Its solver gave up.** A smoother whose GTSAM solver met an indeterminate system mid-run,
-   on a graph it had solved before, stops there (``smoothers.keyframe_smoother``: its
-   estimate had run off to values of 1e250 first); its ``solver_failed`` event is the time.
+3. **Its solver gave up.** A fixed-lag window whose updates stop fitting their own new
+   factors (``smoothers.window_health``: ``window_diverged``), or a smoother whose GTSAM
+   solver met an indeterminate system mid-run, on a graph it had solved before, and stopped
+   there (``smoothers.keyframe_smoother``: ``solver_failed``); the earlier event is the time.
 
 Each is reported with the time it began (``Divergence``), in metrics.json
 (``diverged_at_s``, ``divergence``) and as a warning under every table.
@@ -87,14 +88,17 @@ def out_of_gate(estimate: Estimate) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _solver_failed(estimate: Estimate) -> Divergence | None:
-    """The estimator's ``solver_failed`` event (module docstring, sign 3), if any."""
-    for event in estimate.diagnostics.events:
-        if event.kind == "solver_failed":
-            return Divergence(
-                float(event.t),
-                f"its solver stopped, no estimate after it ({event.details['reason']})",
-            )
-    return None
+    """The earliest of the estimator's ``window_diverged`` and ``solver_failed`` events
+    (module docstring, sign 3), if any."""
+    said = {
+        "window_diverged": "its fixed-lag window stopped fitting its new factors",
+        "solver_failed": "its solver stopped, no estimate after it",
+    }
+    events = [event for event in estimate.diagnostics.events if event.kind in said]
+    if not events:
+        return None
+    first = min(events, key=lambda event: event.t)
+    return Divergence(float(first.t), f"{said[first.kind]} ({first.details['reason']})")
 
 
 def _gates_abandoned(estimate: Estimate) -> Divergence | None:
