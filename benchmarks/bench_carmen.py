@@ -15,7 +15,8 @@ Columns, per log and estimator (the run's own ``metrics.json`` values,
 - with ``--relations LOG=FILE``: the relations error of the field (Kümmerle et al. 2009;
   ``--data relations=FILE``, ``workbench.metrics.relations``): mean translational [m] and
   rotational [deg] error.
-Per log, one line with the front end's figures: corners per scan, confirmed fraction, the
+A run that diverged (``workbench.metrics.divergence``) gets a line with the time and the
+evidence. Per log, one line with the front end's figures: corners per scan, confirmed fraction, the
 re-observation NIS per dof (consecutive scans, odometry increment's covariance included) and
 its gated expectation, front end ms per scan.
 
@@ -141,6 +142,11 @@ def table(logs: list[str], estimators: list[str], data: dict, relations: dict) -
                 notes.append(
                     f"{log} {name}: {metrics['frames_without_pose']} of {metrics['frames']} "
                     "scans without a pose"
+                )
+            if metrics.get("diverged_at_s") is not None:
+                notes.append(
+                    f"{log} {name}: diverged at t={metrics['diverged_at_s']:.1f} s: "
+                    f"{metrics['divergence']}"
                 )
             notes.append(f"{log} {name}: {wall:.0f} s wall")
         corners = sequence.metadata["corners"]
