@@ -287,6 +287,14 @@ class KeyframeSmoother:
             f"after it ({reason})"
         )
 
+    def stopped_notes(self) -> tuple[str, ...]:
+        """The run's notes, with how many measurements arrived after the solver stopped and
+        were not used (``_stop``): the estimate's notes when it stopped."""
+        return tuple(self.notes) + (
+            f"{self.mode} smoother: {self.dropped_after_stop} measurement(s) after the stop "
+            "not used",
+        )
+
     def _current_values(self) -> gtsam.Values:
         """Newest keyframe's estimate, with the not yet committed values layered on top."""
         values = gtsam.Values(self.estimate_values)

@@ -69,7 +69,7 @@ class SmootherIsam2(KeyframeSmoother):
         self._flush()
         if self.stopped is not None:  # the solver failed mid-run: its causal states only
             return self.recorder.build(
-                landmarks=LandmarkMap.empty(self.dimension), notes=tuple(self.notes)
+                landmarks=LandmarkMap.empty(self.dimension), notes=self.stopped_notes()
             )
         values = self.backend.estimate()
         final_map = self.landmark_map(values, self.backend.joint)
@@ -250,7 +250,9 @@ class SmootherFixedLag(KeyframeSmoother):
                 self.exports.history(EstimateRecorder(self.dimension).history()), empty
             )
             return self.recorder.build(
-                landmarks=self.exports.merged_map(empty), smoothed=smoothed, notes=tuple(self.notes)
+                landmarks=self.exports.merged_map(empty),
+                smoothed=smoothed,
+                notes=self.stopped_notes(),
             )
         values = self.backend.estimate()
         in_window = [

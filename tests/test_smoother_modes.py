@@ -290,6 +290,9 @@ def test_a_solver_failure_mid_run_stops_the_run_and_is_reported_as_divergence(
     assert np.all(np.isfinite(causal.positions))
     assert [e.t for e in estimate.diagnostics.events if e.kind == "solver_failed"] == [t_stop]
     assert any("stopped at t=" in note for note in estimate.notes)
+    assert f"{estimator.dropped_after_stop} measurement(s) after the stop not used" in " ".join(
+        estimate.notes
+    )
     divergence = detect_divergence(estimate, sequence)
     assert divergence is not None and divergence.t == t_stop
     assert "solver stopped" in divergence.reason
