@@ -1,8 +1,9 @@
 """Corners of a 2-D laser scan: split-and-merge lines, total-least-squares fits, corners where
 two adjacent lines meet, each with a first-order covariance.
 
-The steps are the 3-D lidar front end's (``datasets.lidar.corners``, whose functions do the
-work here; a 2-D scan is already the "azimuth scan" that module builds from a cloud):
+The steps are the 3-D lidar front end's (``datasets.lidar.corners`` and its ``corner_*``
+modules, whose functions do the work here; a 2-D scan is already the "azimuth scan"
+``datasets.lidar.corner_scan`` builds from a cloud):
 
 1. **Breakpoints** between consecutive returns farther apart than the adaptive breakpoint
    detector's ``D = r sin(dphi) / sin(lambda - dphi) + 3 sigma_r`` (Borges and Aldon, "Line
@@ -18,12 +19,12 @@ work here; a 2-D scan is already the "azimuth scan" that module builds from a cl
    scan): iterative end-point fit with ``split_threshold_m``, then adjacent segments merged
    while their joint line fit's RMS is below ``merge_rms_m``.
 3. **Total least squares** per segment (the orthogonal-regression line through the centroid,
-   ``datasets.lidar.corners._Moments.line``), leaving ``end_trim_points`` out at each end
-   where the two faces of a corner mix; the line's offset/angle covariance by first-order
-   propagation of each return's range and bearing noise (``line_parameter_covariance``, the
-   sandwich form of Arras and Siegwart, "Feature extraction and scene interpretation for
-   map-based navigation and map building", SPIE 3210, 1997, eq. (9)-(11), with
-   heteroscedastic points).
+   ``datasets.lidar.corner_segments._Moments.line``), leaving ``end_trim_points`` out at each
+   end where the two faces of a corner mix; the line's offset/angle covariance by first-order
+   propagation of each return's range and bearing noise (``line_parameter_covariance`` in
+   ``datasets.lidar.corner_uncertainty``, the sandwich form of Arras and Siegwart, "Feature
+   extraction and scene interpretation for map-based navigation and map building", SPIE 3210,
+   1997, eq. (9)-(11), with heteroscedastic points).
 4. **Corners** at the intersection of two consecutive segments of one cluster whose
    directions differ by ``min_corner_angle_deg`` to ``180 - min_corner_angle_deg``, whose
    segments both span ``min_segment_length_m`` and ``min_segment_points`` returns, and whose
@@ -45,7 +46,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.laser2d.scan import PlanarScan, laser_to_body
-from datasets.lidar.corners import CornerConfig, Corners, scan_corners
+from datasets.lidar.corner_config import CornerConfig
+from datasets.lidar.corners import Corners, scan_corners
 
 COVARIANCE_SCALE = 1.0
 """The calibrated scale of the corner covariance (``Laser2dCornerSettings.covariance_scale``;
