@@ -13,13 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from datasets.lidar.corners import (
-    CornerConfig,
-    _PrefixMoments,
-    azimuth_scan_indices,
-    merge_segments,
-    split_segments,
-)
+from datasets.lidar.corner_config import CornerConfig
+from datasets.lidar.corner_scan import azimuth_scan_indices
+from datasets.lidar.corner_segments import _PrefixMoments, merge_segments, split_segments
 
 CLIP = Path(__file__).resolve().parents[2] / "shared" / "data" / "kitti-hdl64-clip"
 
@@ -118,7 +114,7 @@ def test_split_and_merge_equal_the_reference_on_random_polylines() -> None:
 def test_split_and_merge_equal_the_reference_on_the_real_clip() -> None:
     """Every third scan's azimuth scan, cut into clusters at its occlusion breaks the way
     ``scan_corners`` does, with the default thresholds."""
-    from datasets.lidar.corners import _cluster_breaks
+    from datasets.lidar.corner_scan import _cluster_breaks
     from datasets.scan_folder import read_scan
 
     config = CornerConfig()

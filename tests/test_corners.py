@@ -6,13 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets.lidar.corners import (
-    CornerConfig,
-    azimuth_scan_indices,
-    extract_corners,
-    scan_corners,
-    split_segments,
-)
+from datasets.lidar.corner_config import CornerConfig
+from datasets.lidar.corner_scan import azimuth_scan_indices
+from datasets.lidar.corner_segments import split_segments
+from datasets.lidar.corners import extract_corners, scan_corners
 from datasets.synthetic_lidar.lidar import cast_rays
 from datasets.synthetic_lidar.world import Polygon, World
 

@@ -1,7 +1,9 @@
 """One option vocabulary (issue 39): one name per idea across every registered estimator,
 its unit in the name, one meaning and default per name unless the estimator says why; the
 old names still load (``--set``, ``--config``, an old run folder's ``config.yaml``) with one
-warning line."""
+warning line. The same across the two corner extractors' options (the 3-D lidar's
+``CornerConfig``, the 2-D laser's ``Laser2dCornerSettings``): a name they share means one
+thing, its two defaults each with the sensor's reason, and no idea has two names."""
 
 from __future__ import annotations
 
@@ -16,6 +18,10 @@ from pydantic.fields import FieldInfo
 
 from datasets.errors import InputError
 from datasets.estimator_options import ESTIMATOR_NOTE
+from datasets.laser2d.corners import Laser2dCornerSettings
+from datasets.laser2d.frontend import Laser2dFrontEndSettings
+from datasets.lidar.corner_config import SENSOR_NOTE, SHARED_MEANINGS, CornerConfig
+from datasets.lidar.frontend_settings import LidarSourceOptions
 from datasets.option_renames import RENAMED
 from workbench import runner
 from workbench.registry import ESTIMATORS, estimator_entry
@@ -147,6 +153,97 @@ def test_the_rest_are_bools_counts_and_choices():
         if not _floats(annotation):
             kinds = _kinds(annotation)
             assert kinds <= {bool, int, list, types.NoneType, typing.Literal}, (name, kinds)
+
+
+CORNER_CONFIGS = {"3-D lidar": CornerConfig, "2-D laser": Laser2dCornerSettings}
+"""The corner extractors' options: ``--data corner.KEY`` of ``scans:`` and a point-cloud
+``bag:`` (3-D), of ``carmen:`` and, as ``laser.corner.KEY``, of a LaserScan ``bag:`` (2-D)."""
+CORNER_DIMENSIONLESS_WORDS = ("ratio", "scale")
+CONVERTED = {
+    # a 2-D option -> the extractor fields it sets through a conversion (another idea, so
+    # another name), and the conversion
+    "range_sigma_m": {"break_distance_m": "3 sigma_r, the adaptive breakpoint's noise margin"},
+    "breakpoint_angle_deg": {"break_range_ratio": "Borges-Aldon: sin(dphi) / sin(lambda - dphi)"},
+    "max_missing_beams": {"max_gap_bins": "one bin per beam; more than this many: this + 1"},
+}
+
+
+def test_the_corner_data_keys_are_these_configs():
+    assert LidarSourceOptions.model_fields["corner"].annotation is CornerConfig
+    assert Laser2dFrontEndSettings.model_fields["corner"].annotation is Laser2dCornerSettings
+
+
+def test_a_corner_option_name_has_one_meaning_and_each_default_its_reason():
+    lidar, laser = (model.model_fields for model in CORNER_CONFIGS.values())
+    shared = sorted(set(lidar) & set(laser))
+    assert shared == sorted(SHARED_MEANINGS), "a shared name without one shared meaning"
+    problems = []
+    for name in shared:
+        uses = {config: model.model_fields[name] for config, model in CORNER_CONFIGS.items()}
+        if len({str(info.annotation) for info in uses.values()}) > 1:
+            problems.append(f"{name}: types differ")
+        for config, info in uses.items():
+            if info.description.split(SENSOR_NOTE)[0] != SHARED_MEANINGS[name]:
+                problems.append(f"{name}: the {config} description is not the shared meaning")
+        if len({repr(info.default) for info in uses.values()}) > 1:
+            problems += [
+                f"{name}: the {config} default {info.default} without its reason"
+                for config, info in uses.items()
+                if SENSOR_NOTE not in info.description
+            ]
+    assert not problems, "\n".join(problems)
+
+
+def test_no_corner_idea_is_spelt_two_ways():
+    """By description: two names with one meaning (within or across the configs)."""
+    names_by_meaning = defaultdict(set)
+    for model in CORNER_CONFIGS.values():
+        for name, info in model.model_fields.items():
+            names_by_meaning[(info.description or "").split(SENSOR_NOTE)[0]].add(name)
+    assert not [names for names in names_by_meaning.values() if len(names) > 1]
+
+
+def _changed(value):
+    return value + 1 if isinstance(value, int) and not isinstance(value, bool) else value * 1.25
+
+
+def test_each_2d_corner_option_reaches_the_extractor_under_its_own_name():
+    """By what the 2-D front end does with each option (``corner_config``): an option taken
+    as it is goes to the extractor's field of its own name (a shared name means one thing,
+    and one idea is not renamed on the way); any other field it sets is a conversion listed
+    in ``CONVERTED``."""
+    step = np.deg2rad(1.0)
+    base = Laser2dCornerSettings()
+    before = base.corner_config(step).model_dump()
+    problems, converted = [], defaultdict(set)
+    for name in Laser2dCornerSettings.model_fields:
+        value = _changed(getattr(base, name))
+        after = Laser2dCornerSettings(**{name: value}).corner_config(step).model_dump()
+        for field, new in after.items():
+            if new == before[field]:
+                continue
+            if field == name and new == value:
+                continue
+            if field in CONVERTED.get(name, {}) and new != value:
+                converted[name].add(field)
+                continue
+            problems.append(f"2-D {name}={value} sets the extractor's {field}={new}")
+        if name in CornerConfig.model_fields and after[name] != value:
+            problems.append(f"2-D {name} does not reach the extractor's {name} as it is")
+    assert not problems, "\n".join(problems)
+    assert converted == {name: set(fields) for name, fields in CONVERTED.items()}
+
+
+def test_a_corner_quantity_has_its_unit_in_the_name():
+    missing = [
+        name
+        for model in CORNER_CONFIGS.values()
+        for name, info in model.model_fields.items()
+        if _floats(info.annotation)
+        and not name.endswith(UNIT_SUFFIXES)
+        and not any(word in name for word in CORNER_DIMENSIONLESS_WORDS)
+    ]
+    assert not missing, f"float corner options without a unit suffix: {missing}"
 
 
 @pytest.fixture

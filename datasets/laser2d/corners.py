@@ -1,15 +1,16 @@
 """Corners of a 2-D laser scan: split-and-merge lines, total-least-squares fits, corners where
 two adjacent lines meet, each with a first-order covariance.
 
-The steps are the 3-D lidar front end's (``datasets.lidar.corners``, whose functions do the
-work here; a 2-D scan is already the "azimuth scan" that module builds from a cloud):
+The steps are the 3-D lidar front end's (``datasets.lidar.corners`` and its ``corner_*``
+modules, whose functions do the work here; a 2-D scan is already the "azimuth scan"
+``datasets.lidar.corner_scan`` builds from a cloud):
 
 1. **Breakpoints** between consecutive returns farther apart than the adaptive breakpoint
    detector's ``D = r sin(dphi) / sin(lambda - dphi) + 3 sigma_r`` (Borges and Aldon, "Line
    extraction in 2D range images for mobile robotics", J. Intelligent and Robotic Systems
    40(3), 2004, eq. (3)), with ``dphi`` the beam spacing and ``lambda`` the shallowest
    incidence at which a wall still counts as continuous (``breakpoint_angle_deg``), or
-   where a beam or more in a row did not return (``max_missing_beams``). A scan of 1-deg
+   where more than ``max_missing_beams`` beams in a row did not return. A scan of 1-deg
    beams and one of 0.5-deg beams thus break at the same wall incidence.
 2. **Split-and-merge** (Pavlidis and Horowitz, "Segmentation of plane curves", IEEE Trans.
    Computers C-23(8), 1974; the sensor-based paper's ref. [35]; Nguyen et al., "A comparison
@@ -18,16 +19,17 @@ work here; a 2-D scan is already the "azimuth scan" that module builds from a cl
    scan): iterative end-point fit with ``split_threshold_m``, then adjacent segments merged
    while their joint line fit's RMS is below ``merge_rms_m``.
 3. **Total least squares** per segment (the orthogonal-regression line through the centroid,
-   ``datasets.lidar.corners._Moments.line``), leaving ``end_trim_points`` out at each end
-   where the two faces of a corner mix; the line's offset/angle covariance by first-order
-   propagation of each return's range and bearing noise (``line_parameter_covariance``, the
-   sandwich form of Arras and Siegwart, "Feature extraction and scene interpretation for
-   map-based navigation and map building", SPIE 3210, 1997, eq. (9)-(11), with
-   heteroscedastic points).
+   ``datasets.lidar.corner_segments._Moments.line``), leaving ``end_trim_points`` out at each
+   end where the two faces of a corner mix; the line's offset/angle covariance by first-order
+   propagation of each return's range and bearing noise (``line_parameter_covariance`` in
+   ``datasets.lidar.corner_uncertainty``, the sandwich form of Arras and Siegwart, "Feature
+   extraction and scene interpretation for map-based navigation and map building", SPIE 3210,
+   1997, eq. (9)-(11), with heteroscedastic points).
 4. **Corners** at the intersection of two consecutive segments of one cluster whose
    directions differ by ``min_corner_angle_deg`` to ``180 - min_corner_angle_deg``, whose
    segments both span ``min_segment_length_m`` and ``min_segment_points`` returns, and whose
-   intersection lies within ``max_corner_gap_m`` of both segments' facing ends. The
+   intersection lies within ``max_corner_gap_m`` of the bridge between the two segments'
+   facing ends (the boundary refinement leaves adjacent segments no shared return). The
    corner's 2x2 covariance ``N^-1 diag(var v_1, var v_2) N^-T`` propagates the two lines'
    covariances to first order (``corner_covariance``; ``N`` stacks the lines' normals,
    ``var v_k`` is line ``k``'s variance along its normal at the corner), plus an isotropic
@@ -45,7 +47,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from datasets.laser2d.scan import PlanarScan, laser_to_body
-from datasets.lidar.corners import CornerConfig, Corners, scan_corners
+from datasets.lidar.corner_config import CornerConfig, corner_option
+from datasets.lidar.corners import Corners, scan_corners
 
 COVARIANCE_SCALE = 1.0
 """The calibrated scale of the corner covariance (``Laser2dCornerSettings.covariance_scale``;
@@ -54,21 +57,33 @@ COVARIANCE_SCALE = 1.0
 
 class Laser2dCornerSettings(BaseModel):
     """Corner extraction from a 2-D laser scan (module docstring); defaults for a SICK LMS
-    class indoor laser at 0.5 or 1 deg spacing, the same on every log."""
+    class indoor laser at 0.5 or 1 deg spacing, the same on every log. An option named as one
+    of the 3-D extractor's means the same (``datasets.lidar.corner_config.SHARED_MEANINGS``);
+    its note says why its default differs."""
 
     model_config = ConfigDict(extra="forbid")
 
-    range_sigma_m: float = Field(
-        0.01, gt=0, description="range noise std of one return [m] (SICK LMS 200: 1 cm)"
+    range_sigma_m: float = corner_option(
+        "range_sigma_m", 0.01, "0.01 for a SICK LMS class laser indoors (LMS 200: 1 cm)", gt=0
     )
-    bearing_sigma_rad: float = Field(
-        0.002, gt=0, description="bearing noise std of one return [rad]"
-    )
-    min_range_m: float = Field(0.1, ge=0, description="nearest return used [m]")
-    max_range_m: float = Field(
-        20.0,
+    bearing_sigma_rad: float = corner_option(
+        "bearing_sigma_rad",
+        0.002,
+        "0.002 for a SICK LMS class laser at 0.5 or 1 deg beams, stated for the sensor (not "
+        "measured in the repo)",
         gt=0,
-        description="farthest return used [m] (farther walls are too sparse to fit lines to)",
+    )
+    min_range_m: float = corner_option(
+        "min_range_m",
+        0.1,
+        "0.1: an indoor robot passes walls and door frames closely (not measured in the repo)",
+        ge=0,
+    )
+    max_range_m: float = corner_option(
+        "max_range_m",
+        20.0,
+        "20: farther walls are too sparse to fit lines to (1 deg beams are 0.35 m apart there)",
+        gt=0,
     )
     breakpoint_angle_deg: float = Field(
         10.0,
@@ -80,34 +95,56 @@ class Laser2dCornerSettings(BaseModel):
     max_missing_beams: int = Field(
         1, ge=0, description="break the scan where more than this many beams in a row are missing"
     )
-    split_threshold_m: float = Field(
+    split_threshold_m: float = corner_option(
+        "split_threshold_m",
         0.05,
+        "0.05, below the 3-D lidar's 0.06 with this laser's smaller range_sigma_m (not measured "
+        "in the repo)",
         gt=0,
-        description="split a segment whose farthest return is this far from its chord [m]",
     )
-    merge_rms_m: float = Field(
-        0.02, gt=0, description="merge adjacent segments whose joint line fit RMS is below this [m]"
+    merge_rms_m: float = corner_option(
+        "merge_rms_m",
+        0.02,
+        "0.02, below the 3-D lidar's 0.03 with this laser's smaller range_sigma_m (not measured "
+        "in the repo)",
+        gt=0,
     )
-    min_segment_points: int = Field(5, ge=3, description="fewest returns of a corner's segment")
-    min_segment_length_m: float = Field(0.2, gt=0, description="shortest segment of a corner [m]")
-    end_trim_points: int = Field(
-        1, ge=0, description="returns left out of the line fit at each segment end"
+    min_segment_points: int = corner_option(
+        "min_segment_points",
+        5,
+        "5 for a laser indoors, where door jambs and niches make short segments (not measured "
+        "in the repo)",
+        ge=3,
     )
-    min_corner_angle_deg: float = Field(
+    min_segment_length_m: float = corner_option(
+        "min_segment_length_m",
+        0.2,
+        "0.2 for a laser indoors, where door jambs and niches make short segments (not "
+        "measured in the repo)",
+        gt=0,
+    )
+    end_trim_points: int = corner_option("end_trim_points", 1, ge=0)
+    min_corner_angle_deg: float = corner_option(
+        "min_corner_angle_deg",
         45.0,
+        "45: indoor walls meet near right angles, 45-135 deg kept (not measured in the repo)",
         gt=0,
         lt=90,
-        description="corners where the lines' directions differ by this to 180 minus this [deg]",
     )
-    max_corner_gap_m: float = Field(
+    max_corner_gap_m: float = corner_option(
+        "max_corner_gap_m",
         0.2,
+        "0.2, from the bridge between the refined segments' ends rather than from each end "
+        "(not measured in the repo)",
         gt=0,
-        description="farthest the intersection may be from either segment's facing end [m]",
     )
-    model_sigma_m: float = Field(
+    model_sigma_m: float = corner_option(
+        "model_sigma_m",
         0.01,
+        "0.01: a 2-D scan is not deskewed by an odometry estimate (the 3-D floor's deskew and "
+        "odometry error), and covariance_scale, fitted on the shared logs, scales the rest; the "
+        "0.01 itself is not measured in the repo",
         ge=0,
-        description="isotropic std added to every corner for what the point model leaves out [m]",
     )
     covariance_scale: float = Field(
         COVARIANCE_SCALE,

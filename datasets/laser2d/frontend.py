@@ -23,7 +23,8 @@ from datasets.errors import InputError
 from datasets.laser2d.corners import Laser2dCornerSettings, planar_scan_corners
 from datasets.laser2d.reobservation import PairGroup, ReobservationLog, match_consecutive
 from datasets.laser2d.scan import PlanarScan
-from datasets.lidar.corners import CornerConfig, Corners
+from datasets.lidar.corner_config import CornerConfig
+from datasets.lidar.corners import Corners
 from datasets.measurements import LandmarkScan
 
 

@@ -1,5 +1,5 @@
-"""Compiled loops of the corner extractor (``datasets.lidar.corners``): the split and merge
-steps of Pavlidis and Horowitz, one segment at a time.
+"""Compiled loops of the corner extractor (``datasets.lidar.corner_segments``): the split and
+merge steps of Pavlidis and Horowitz, one segment at a time.
 
 Why compiled: both steps are loops whose length the scan decides (a KITTI scan takes about
 ten split levels and tens of merges), and in numpy or Python each iteration is a handful of

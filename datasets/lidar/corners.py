@@ -2,7 +2,9 @@
 corners where two lines meet at a sufficient angle.
 
 Pipeline (vectorized numpy over points, except the split and merge loops of step 4, which
-are compiled: ``corner_kernels``):
+are compiled: ``corner_kernels``), run by ``scan_corners`` here: steps 1-3 are in
+``corner_scan``, step 4 and the line moments in ``corner_segments``, the covariances of steps
+5-6 in ``corner_uncertainty``, the options in ``corner_config``.
 
 1. **Slab**: points within ``slab_half_thickness_m`` of ``slab_height_m`` (body z) and in
    ``[min_range_m, max_range_m]`` horizontally, projected to the x-y plane.
@@ -44,77 +46,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
 
-from datasets.lidar.corner_kernels import merge_segments_kernel, split_segments_kernel
+from datasets.lidar.corner_config import CornerConfig
+from datasets.lidar.corner_scan import _cluster_breaks, _norms, _rotated, azimuth_scan
+from datasets.lidar.corner_segments import (
+    _merge_segments,
+    _PrefixMoments,
+    refine_boundaries,
+    split_segments,
+)
+from datasets.lidar.corner_uncertainty import corner_covariance, line_parameter_covariance
 from datasets.measurements import LandmarkScan
-
-
-class CornerConfig(BaseModel):
-    """Parameters of the corner extractor."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    slab_height_m: float = Field(0.0, description="slab centre in the body frame (z) [m]")
-    slab_half_thickness_m: float = Field(0.25, gt=0, description="half thickness of the slab [m]")
-    min_range_m: float = Field(0.5, ge=0, description="nearest horizontal range used [m]")
-    max_range_m: float = Field(15.0, gt=0, description="farthest horizontal range used [m]")
-    azimuth_resolution_deg: float = Field(
-        0.25, gt=0, description="azimuth bin of the 2-D scan [deg]"
-    )
-    range_sigma_m: float = Field(0.02, gt=0, description="range noise std of a point [m]")
-    bearing_sigma_rad: float = Field(0.003, gt=0, description="bearing noise std of a point [rad]")
-    break_distance_m: float = Field(
-        0.2, gt=0, description="cluster break: fixed part of the jump [m]"
-    )
-    break_range_ratio: float = Field(
-        0.05, ge=0, description="cluster break: part of the jump proportional to range"
-    )
-    max_gap_bins: int = Field(4, ge=1, description="cluster break: this many empty azimuth bins")
-    split_threshold_m: float = Field(
-        0.06,
-        gt=0,
-        description="split a segment whose farthest point is this far from its chord [m]",
-    )
-    merge_rms_m: float = Field(
-        0.03, gt=0, description="merge adjacent segments whose joint line fit RMS is below this [m]"
-    )
-    min_segment_points: int = Field(6, ge=3, description="fewest points of a line segment")
-    min_segment_length_m: float = Field(0.25, gt=0, description="shortest line segment [m]")
-    end_trim_points: int = Field(
-        1, ge=0, description="points left out of the line fit at each segment end"
-    )
-    refine_boundaries: bool = Field(
-        False,
-        description="move each boundary between adjacent segments of a cluster to where the "
-        "two lines fit best (least total squared distance; refine_boundaries below)",
-    )
-    min_fit_points: int | None = Field(
-        None,
-        ge=2,
-        description="fewest points a trimmed line fit keeps; a segment with fewer after the "
-        "trim is fitted untrimmed (None: min_segment_points)",
-    )
-    min_corner_angle_deg: float = Field(
-        35.0, gt=0, lt=90, description="least angle between the two lines of a corner [deg]"
-    )
-    max_corner_gap_m: float = Field(
-        0.3, gt=0, description="farthest the intersection may be from either segment end [m]"
-    )
-    directions: bool = Field(
-        False, description="also output the two unit line directions of every corner"
-    )
-    dimension: int = Field(
-        3, ge=2, le=3, description="2: planar corners; 3: corners at the slab height"
-    )
-    slab_sigma_m: float | None = Field(
-        None, description="std of a 3-D corner's z [m] (default: half thickness / sqrt(3))"
-    )
-    model_sigma_m: float = Field(
-        0.015,
-        ge=0,
-        description="isotropic horizontal std added to every corner for what the point noise model leaves out (deskew and odometry error, beam width) [m]",
-    )
 
 
 @dataclass(frozen=True)
@@ -140,87 +82,6 @@ class Corners:
         )
 
 
-def azimuth_scan(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """The azimuth scan: xy (m, 2) [m] ordered by azimuth, and their bin indices (m,)."""
-    indices, bins = azimuth_scan_indices(points, config)
-    return points[:, :2].take(indices, axis=0), bins
-
-
-def azimuth_scan_indices(points: np.ndarray, config: CornerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the slab points of ``points`` (n, 3) [m] that make the azimuth scan (steps
-    1-2): one point per azimuth bin (the one nearest the slab centre; among equally near
-    ones, the one nearest the bin's centre azimuth), ordered by azimuth; and the bin of
-    each (m,)."""
-    # The slab test is the only pass over the whole cloud (120k points on KITTI, reached with
-    # the cloud out of the caches, so reading its z costs most of this function): abs in
-    # place rather than a second temporary, and the slab's rows gathered in one take rather
-    # than two fancy-indexed columns (together 650 -> 390 us on a cold KITTI cloud).
-    offset = points[:, 2] - config.slab_height_m
-    np.abs(offset, out=offset)
-    keep = np.flatnonzero(offset <= config.slab_half_thickness_m)  # cheap test first
-    slab = points.take(keep, axis=0)
-    x, y = slab[:, 0], slab[:, 1]
-    squared_range = x * x + y * y
-    inside = np.flatnonzero(
-        (squared_range >= config.min_range_m**2) & (squared_range <= config.max_range_m**2)
-    )
-    keep, x, y = keep.take(inside), x.take(inside), y.take(inside)
-    offset = offset.take(keep)
-    resolution = np.deg2rad(config.azimuth_resolution_deg)
-    azimuth = (np.arctan2(y, x) + np.pi) / resolution  # in bins
-    bins = np.floor(azimuth).astype(np.int64)
-    total_bins = int(np.ceil(2.0 * np.pi / resolution)) + 1
-    # Per bin, the point nearest the slab centre (the most horizontal ring): unlike the
-    # nearest point, it does not bias ranges short when several rings share a bin. Ties
-    # are common (KITTI's z is quantised to 1 mm: a quarter of the bins) and go to the point
-    # nearest the bin's centre azimuth, which keeps the scan's azimuth sampling regular
-    # and does not depend on the order of the points in the file. The tie-break matters:
-    # on the real KITTI clip the corner re-observation NIS/dof reads 0.68-1.22 across
-    # six tie-breaks (first or last in the file, nearest or farthest, this one 0.91; an
-    # unstable sort gave 0.76), so a difference of that size there is not a finding.
-    # Per-bin minima and no sort of the slab: O(n), 2x faster on KITTI scans.
-    nearest = np.full(total_bins, np.inf)
-    np.minimum.at(nearest, bins, offset)
-    winners = np.flatnonzero(offset == nearest[bins])
-    winner_bins = bins[winners]
-    from_centre = np.abs(azimuth[winners] - winner_bins - 0.5)
-    most_central = np.full(total_bins, np.inf)
-    np.minimum.at(most_central, winner_bins, from_centre)
-    winners = winners[from_centre == most_central[winner_bins]]
-    # exact ties left: the first in the file (winners ascend); read in bin order, the
-    # per-bin minima are the scan (as np.unique's first occurrences, without its sort)
-    first = np.full(total_bins, len(keep))
-    np.minimum.at(first, bins[winners], winners)
-    chosen = first[first < len(keep)]
-    return keep[chosen], bins[chosen]
-
-
-def _cluster_breaks(xy: np.ndarray, bins: np.ndarray, config: CornerConfig) -> np.ndarray:
-    """``breaks[i]``: the circular scan breaks between point i and i+1 (step 3)."""
-    total_bins = int(np.ceil(360.0 / config.azimuth_resolution_deg))
-    jump = _norms(_rotated(xy, 1) - xy)
-    ranges = np.hypot(xy[:, 0], xy[:, 1])
-    rng = np.minimum(ranges, _rotated(ranges, 1))
-    gap = np.mod(_rotated(bins, 1) - bins, total_bins)
-    return (jump > config.break_distance_m + config.break_range_ratio * rng) | (
-        gap > config.max_gap_bins
-    )
-
-
-def _rotated(values: np.ndarray, shift: int) -> np.ndarray:
-    """``values`` (m, ...) starting at row ``shift`` (0 <= shift <= m), the rows before it
-    moved to the end: ``np.roll(values, -shift, axis=0)`` without its overhead."""
-    return np.concatenate([values[shift:], values[:shift]])
-
-
-def _norms(vectors: np.ndarray) -> np.ndarray:
-    """Euclidean norms (k,) of the rows of ``vectors`` (k, 2), bit for bit as
-    ``np.linalg.norm(vectors, axis=1)`` computes them (the square root of x*x + y*y), at a
-    fraction of its cost on these small arrays: a reduction along rows of two is slow."""
-    x, y = vectors[:, 0], vectors[:, 1]
-    return np.sqrt(x * x + y * y)
-
-
 def _no_corners(config: CornerConfig) -> Corners:
     """The result without corners, shaped for ``config``."""
     d = config.dimension
@@ -232,160 +93,6 @@ def _no_corners(config: CornerConfig) -> Corners:
     )
 
 
-def _flat_indices(starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Point indices of inclusive ranges ``[starts, ends]`` concatenated, and their range ids."""
-    lengths = ends - starts + 1
-    owners = np.arange(len(starts)).repeat(lengths)
-    offsets = lengths.cumsum() - lengths
-    return np.arange(len(owners)) + (starts - offsets)[owners], owners
-
-
-def split_segments(
-    xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, threshold_m: float, max_levels: int = 64
-) -> tuple[np.ndarray, np.ndarray]:
-    """Iterative end-point fit (the split step of Pavlidis and Horowitz): the inclusive index
-    ranges ``[starts, ends]`` of ``xy`` (m, 2) [m] split at their first point farthest from
-    the chord while that distance exceeds ``threshold_m``, at most ``max_levels`` deep; the
-    split point ends one segment and starts the next. Returns the final segments' starts and
-    ends, ordered by start (``corner_kernels.split_segments_kernel``: compiled, as a loop
-    over a scan's ten-odd levels of numpy calls cost 0.5 ms a KITTI scan)."""
-    return split_segments_kernel(
-        np.ascontiguousarray(xy, dtype=np.float64),
-        np.asarray(starts, dtype=np.int64),
-        np.asarray(ends, dtype=np.int64),
-        max(float(threshold_m), 0.0),
-        int(max_levels),
-    )
-
-
-@dataclass(frozen=True)
-class _Moments:
-    """Additive sums over segment points, (m, 6): n, sum x, sum y, sum xx, sum xy, sum yy."""
-
-    sums: np.ndarray
-
-    def line(self) -> tuple[np.ndarray, np.ndarray]:
-        """Total-least-squares line: centroid (m, 2), unit direction (m, 2)."""
-        mean, cxx, cxy, cyy = self._centred()
-        angle = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)
-        direction = np.empty((len(angle), 2))
-        np.cos(angle, out=direction[:, 0])
-        np.sin(angle, out=direction[:, 1])
-        return mean[:, :2], direction
-
-    def _centred(self) -> tuple[np.ndarray, ...]:
-        """Means of x, y, xx, xy, yy over the points (m, 5), and the central second moments
-        xx, xy, yy (m,) each."""
-        mean = self.sums[:, 1:] / np.maximum(self.sums[:, :1], 1)
-        cx, cy = mean[:, 0], mean[:, 1]
-        return mean, mean[:, 2] - cx * cx, mean[:, 3] - cx * cy, mean[:, 4] - cy * cy
-
-
-class _PrefixMoments:
-    """Cumulative sums of ``1, x, y, xx, xy, yy`` over the scan, so the moments of any
-    inclusive index range cost two lookups (the merge loop asks for them once per merge).
-
-    Attributes:
-        sums: (m + 1, 6), a zero row, then the running sums.
-    """
-
-    def __init__(self, xy: np.ndarray) -> None:
-        x, y = xy[:, 0], xy[:, 1]
-        # a zero row, then the running sums, the columns written and summed in place (the
-        # same sequential sums as stacking the columns and a cumsum, without the copies)
-        self.sums = np.zeros((len(xy) + 1, 6))
-        columns = self.sums[1:]
-        columns[:, 0], columns[:, 1], columns[:, 2] = 1.0, x, y
-        np.multiply(x, x, out=columns[:, 3])
-        np.multiply(x, y, out=columns[:, 4])
-        np.multiply(y, y, out=columns[:, 5])
-        np.cumsum(columns, axis=0, out=columns)
-
-    def totals(self, starts, ends) -> np.ndarray:
-        """(m, 6) sums of the inclusive ranges ``[starts, ends]`` (index arrays or ints)."""
-        return self.sums.take(np.asarray(ends) + 1, axis=0) - self.sums.take(starts, axis=0)
-
-    def of(self, starts: np.ndarray, ends: np.ndarray) -> _Moments:
-        """Moments of the inclusive ranges ``[starts, ends]``."""
-        return _Moments(self.totals(starts, ends))
-
-
-def merge_segments(
-    xy: np.ndarray, starts: np.ndarray, ends: np.ndarray, cluster: np.ndarray, rms_m: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Merge adjacent segments of one cluster whose joint line fit has RMS below ``rms_m``
-    (the merge step of Pavlidis and Horowitz); greedy, best pair first (lowest joint RMS,
-    then leftmost), over segments. ``cluster`` (m,) is each point's cluster number."""
-    return _merge_segments(_PrefixMoments(xy), starts, ends, cluster, rms_m)
-
-
-def _merge_segments(
-    prefix: _PrefixMoments,
-    starts: np.ndarray,
-    ends: np.ndarray,
-    cluster: np.ndarray,
-    rms_m: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """``merge_segments`` with the scan's prefix moments given (``extract_corners`` fits
-    its lines with the same ones): ``corner_kernels.merge_segments_kernel``, a heap of
-    adjacent pairs with lazy invalidation (a merge re-scores only the two pairs next to the
-    merged segment), compiled: in Python it cost 0.4 ms a KITTI scan."""
-    starts = np.asarray(starts, dtype=np.int64)
-    return merge_segments_kernel(
-        prefix.sums, starts, np.asarray(ends, dtype=np.int64), cluster[starts], float(rms_m)
-    )
-
-
-def refine_boundaries(
-    prefix: _PrefixMoments,
-    starts: np.ndarray,
-    ends: np.ndarray,
-    cluster: np.ndarray,
-    least: int,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Each boundary between adjacent segments of one cluster moved to the break that fits
-    the two lines best: over the points of both, the split ``[start, k] | [k + 1, end]``
-    with the least sum of the two total-least-squares residual sums of squares (each
-    ``n`` times the smaller eigenvalue of its scatter matrix, from the prefix moments), each
-    side keeping at least ``least`` points. Boundaries are refined left to right.
-
-    Why: the iterative end-point fit splits at the point farthest from a chord, which noise
-    can put a few points away from the true break when one of the two lines has few points
-    (a door jamb seen obliquely); those points of the neighbouring wall then sit in the
-    short line's fit, beyond what the end trim removes, and bias its corner by centimetres
-    (``tests/test_laser2d_corners.py``). After refinement adjacent segments share no point.
-    """
-    starts, ends = np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64)
-    left_index = np.flatnonzero(
-        (cluster[starts[:-1]] == cluster[ends[1:]]) & (starts[1:] - ends[:-1] <= 1)
-    )
-    low, high = starts[left_index], ends[left_index + 1]
-    counts = np.maximum(high - low + 3 - 2 * least, 0)  # breaks k with both sides >= least
-    left_index, low, high, counts = (
-        left_index[counts > 0],
-        low[counts > 0],
-        high[counts > 0],
-        counts[counts > 0],
-    )
-    if len(left_index) == 0:
-        return starts, ends
-    # every candidate break of every boundary at once: left [low, k], right [k + 1, high]
-    owner = np.repeat(np.arange(len(left_index)), counts)
-    offsets = np.cumsum(counts) - counts
-    breaks = low[owner] + least - 1 + (np.arange(len(owner)) - offsets[owner])
-    cost = _residual_sum(_Moments(prefix.totals(low[owner], breaks))) + _residual_sum(
-        _Moments(prefix.totals(breaks + 1, high[owner]))
-    )
-    order = np.lexsort((cost, owner))
-    best = breaks[order[np.concatenate([[0], np.cumsum(counts)[:-1]])]]
-    for i, k in zip(left_index.tolist(), best.tolist()):
-        # a break refined just before may have shortened this boundary's left segment
-        k = min(max(k, int(starts[i]) + least - 1), int(ends[i + 1]) - least)
-        if k >= int(starts[i]) + least - 1:
-            ends[i], starts[i + 1] = k, k + 1
-    return starts, ends
-
-
 def _bridge_distance(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """Distance (k,) [m] of each of ``points`` (k, 2) from the segment joining ``starts``
     (k, 2) to ``ends`` (k, 2)."""
@@ -393,79 +100,6 @@ def _bridge_distance(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -
     length2 = np.maximum(np.sum(span * span, axis=1), 1e-24)
     along = np.clip(np.sum((points - starts) * span, axis=1) / length2, 0.0, 1.0)
     return _norms(points - (starts + along[:, None] * span))
-
-
-def _residual_sum(moments: _Moments) -> np.ndarray:
-    """Total-least-squares residual sum of squares of each range (m,) [m^2]: ``n`` times the
-    smaller eigenvalue of the central second-moment matrix."""
-    _, cxx, cxy, cyy = moments._centred()
-    half_trace = 0.5 * (cxx + cyy)
-    spread = np.sqrt(np.maximum(0.25 * (cxx - cyy) ** 2 + cxy * cxy, 0.0))
-    return moments.sums[:, 0] * np.maximum(half_trace - spread, 0.0)
-
-
-def point_perpendicular_variance(
-    xy: np.ndarray, normal: np.ndarray, config: CornerConfig
-) -> np.ndarray:
-    """Variance [m^2] of each point across its line, from range/bearing noise:
-    ``n^T (s_r^2 u u^T + r^2 s_b^2 v v^T) n`` with u radial, v tangential unit vectors."""
-    x, y = xy[:, 0], xy[:, 1]
-    r = np.hypot(x, y)
-    scale = np.maximum(r, 1e-12)
-    u_x, u_y = x / scale, y / scale
-    nu = normal[:, 0] * u_x + normal[:, 1] * u_y
-    nv = normal[:, 1] * u_x - normal[:, 0] * u_y  # v = (-u_y, u_x)
-    return config.range_sigma_m**2 * nu**2 + (r * config.bearing_sigma_rad) ** 2 * nv**2
-
-
-def line_parameter_covariance(
-    xy: np.ndarray,
-    starts: np.ndarray,
-    ends: np.ndarray,
-    centroid: np.ndarray,
-    direction: np.ndarray,
-    config: CornerConfig,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """First-order covariance of an unweighted least-squares line ``d = a + b s`` in the
-    line's own frame (s along ``direction`` from the centroid, d along the normal), with
-    heteroscedastic perpendicular noise ``sigma_i^2`` (sandwich form):
-    ``var a = sum sigma^2 / n^2``, ``var b = sum sigma^2 s^2 / (sum s^2)^2``,
-    ``cov ab = sum sigma^2 s / (n sum s^2)``.
-
-    Returns:
-        var_a (m,), var_b (m,), cov_ab (m,).
-    """
-    index, owner = _flat_indices(starts, ends)
-    points = xy.take(index, axis=0)
-    # per point, its line's centroid and direction (one gather)
-    c_x, c_y, d_x, d_y = np.concatenate([centroid, direction], axis=1).take(owner, axis=0).T
-    s = (points[:, 0] - c_x) * d_x + (points[:, 1] - c_y) * d_y
-    sigma2 = point_perpendicular_variance(points, np.column_stack([-d_y, d_x]), config)
-    count = len(starts)
-
-    def total(values: np.ndarray) -> np.ndarray:
-        return np.bincount(owner, weights=values, minlength=count)
-
-    n = (ends - starts + 1).astype(float)  # the point counts (exact)
-    sum_s2 = np.maximum(total(s * s), 1e-12)
-    return total(sigma2) / n**2, total(sigma2 * s * s) / sum_s2**2, total(sigma2 * s) / (n * sum_s2)
-
-
-def corner_covariance(
-    normal_1: np.ndarray, normal_2: np.ndarray, var_v1: np.ndarray, var_v2: np.ndarray
-) -> np.ndarray:
-    """Covariance (k, 2, 2) of the intersection x of two lines ``n_k^T (x - c_k) = 0``.
-
-    Perturbing line k by offset ``da_k`` and rotation ``db_k`` moves it, at the corner, by
-    ``dv_k = da_k + s_k db_k`` along ``n_k``, so ``N dx = dv`` with ``N = [n_1^T; n_2^T]`` and
-    ``Cov(x) = N^-1 diag(var v_1, var v_2) N^-T``.
-    """
-    matrix = np.stack([normal_1, normal_2], axis=1)  # rows n1, n2
-    inverse = np.linalg.inv(matrix)
-    diagonal = np.zeros((len(var_v1), 2, 2))
-    diagonal[:, 0, 0], diagonal[:, 1, 1] = var_v1, var_v2
-    covariance = inverse @ diagonal @ np.swapaxes(inverse, 1, 2)
-    return 0.5 * (covariance + np.swapaxes(covariance, 1, 2))
 
 
 def extract_corners(points: np.ndarray, config: CornerConfig) -> Corners:

@@ -22,8 +22,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from datasets.errors import InputError
+from datasets.lidar.corner_scan import azimuth_scan_indices
 from datasets.lidar.corner_tracking import CornerTracker
-from datasets.lidar.corners import Corners, azimuth_scan_indices, scan_corners
+from datasets.lidar.corners import Corners, scan_corners
 from datasets.lidar.frontend_diagnostics import FrontEndDiagnostics
 from datasets.lidar.frontend_report import FrontEndReport
 from datasets.lidar.frontend_settings import FrontEndSettings

@@ -10,7 +10,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from datasets.lidar.corners import CornerConfig
+from datasets.lidar.corner_config import CornerConfig
 from datasets.lidar.kiss_icp_odometry import KissIcpSettings
 from datasets.lidar.sweep_times import POINT_TIMES_DESCRIPTION, SweepOptions
 
