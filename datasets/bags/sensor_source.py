@@ -1,7 +1,7 @@
 """``bag:PATH`` without a lidar: IMU, wheel odometry, GPS and 2-D laser in any combination.
 
 ``datasets.bags.source.bag_sequence`` hands a bag without a PointCloud2 topic here. What the
-sequence holds is decided from the bag and printed (``metadata["decisions"]``, shown by
+sequence holds is decided from the bag and printed (``Sequence.decisions``, shown by
 ``workbench run`` as ``note:`` and by ``workbench bag`` as ``front end:``):
 
 - **3-D** (the default): ``ImuSample`` from the Imu topic, ``GpsFix`` from the NavSatFix
@@ -43,10 +43,11 @@ from datasets.bags.sequence_sources import SensorSource
 from datasets.bags.spans import topic_spans
 from datasets.bags.time_base import common_time_base
 from datasets.bags.topic_roles import OdometryRole, choose_odometry
-from datasets.bags.topics import BagTopics, topic_types
+from datasets.bags.topics import BagTopics, SensorTopics, topic_types
 from datasets.bags.wheel_odometry import PoseSample, WheelIncrements, WheelNoise
 from datasets.errors import InputError
 from datasets.measurements import Measurement, Sensor
+from datasets.pass_report import PassReport
 from datasets.sequence import NoiseSpec, Sequence
 
 
@@ -159,30 +160,31 @@ def sensor_sequence(
     )
     metadata = {
         "source": str(path),
-        "reference_source": f"topic {topics.ground_truth}" if topics.ground_truth else None,
-        "warnings": warnings,
-        "topics": {
-            "lidar": None,
-            "imu": imu_topic,
-            "ground_truth": topics.ground_truth,
-            "gps": gps_topic,
-            "odometry": role.topic,
-            "laser": laser_topic if planar else None,
-        },
         "time_base": time_base.as_dict(),
         "gps_origin": list(origin) if origin else None,
         "options": settings.model_dump(mode="json"),
-        "decisions": decisions,
+    }
+    # the typed fields of the sequence besides its warnings and decisions (still growing)
+    described = {
+        "reference_source": f"topic {topics.ground_truth}" if topics.ground_truth else None,
+        "topics": SensorTopics(
+            imu=imu_topic,
+            ground_truth=topics.ground_truth,
+            gps=gps_topic,
+            odometry=role.topic,
+            laser=laser_topic if planar else None,
+        ),
     }
     name = f"bag:{argument}"
     if planar:
         return planar_sequence(
             name, path, settings, read_settings, laser_topic, role, noise_model, time_base,
-            ground_truth, initial, rates, metadata, decisions, warnings,
+            ground_truth, initial, rates, metadata, described, decisions, warnings,
         )  # fmt: skip
     source = SensorSource()
     topic_list = [t for t in (imu_topic, gps_topic, role.topic) if t]
-    counts: dict[str, int] = {}
+    # filled once the stream has run: the increments made and composed, the pass's warnings
+    pass_report = PassReport.expecting("odometry_counts")
 
     def stream() -> Iterator[Measurement]:
         report = ReadReport()
@@ -204,12 +206,15 @@ def sensor_sequence(
                     yield odometry
             else:
                 yield measurement
-        if increments is not None:
-            counts.update(
-                odometry_increments=increments.emitted,
-                odometry_messages_composed=increments.composed,
-            )
-        source.record_warnings(warnings)
+        counts = (
+            {}
+            if increments is None
+            else {
+                "odometry_increments": increments.emitted,
+                "odometry_messages_composed": increments.composed,
+            }
+        )
+        pass_report.record(source.pass_warnings(), odometry_counts=counts)
 
     sensors = {Sensor.IMU} if imu_topic else set()
     sensors |= {Sensor.GPS} if gps_topic else set()
@@ -221,7 +226,6 @@ def sensor_sequence(
                 f"to at most odometry_max_rate_hz={settings.odometry_max_rate_hz:g} Hz (the "
                 "smoothers open a keyframe at each)"
             )
-    metadata["odometry_counts"] = counts  # filled once the stream has run
     noise = NoiseSpec(
         gyro_noise_density=(settings.gyro_noise_density or gyro_density or 1.7e-4)
         if imu_topic
@@ -246,5 +250,9 @@ def sensor_sequence(
         noise=noise,
         initial_state=initial,
         metadata=metadata,
+        warnings=tuple(warnings),
+        decisions=tuple(decisions),
+        pass_report=pass_report,
+        **described,
     )
     return sequence, source

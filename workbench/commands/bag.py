@@ -130,7 +130,7 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
         "corner_recall": None,
         "skipped": source.report.lines(),
         "nonfinite_points_dropped": int(source.report.nonfinite_points),
-        "topics": sequence.metadata.get("topics"),
+        "topics": sequence.topics.as_dict() if sequence.topics is not None else None,
         # corners found again where they were (KISS-ICP's poses), and how far they moved
         # against their covariances (datasets.lidar.corner_tracking)
         **(report.reobservation.summary() if report.reobservation is not None else {}),
@@ -163,10 +163,10 @@ def front_end_metrics(sequence, source, seconds: float) -> dict:
             metrics["kiss_icp_ate"] = report
         except InputError as error:
             metrics["kiss_icp_ate_error"] = str(error)
-    sidecar = sequence.metadata.get("corner_sidecar")
-    if sidecar and truth is not None and front_end.settings.corners:
+    sidecar = sequence.corner_sidecar
+    if sidecar is not None and truth is not None and front_end.settings.corners:
         config = front_end.settings.corner
-        corner_truth = read_corner_truth(Path(sidecar))
+        corner_truth = read_corner_truth(sidecar)
         metrics.update(
             score_corners(
                 [(f.t, f.corners.points) for f in frames],
@@ -314,7 +314,7 @@ def _bag_command(
     seconds = run_front_end(sequence, source, lidar_messages, disable)
     if not source.front_end.frames:
         raise InputError(
-            f"{path}: no usable point clouds on {sequence.metadata['topics']['lidar']}"
+            f"{path}: no usable point clouds on {sequence.topics.lidar}"
             + (f" ({'; '.join(source.report.lines())})" if source.report.skipped else "")
         )
     claim()
@@ -380,16 +380,16 @@ def _bag_command(
             )
     write_atomic(front_dir / "metrics.json", dump_json(front))
     # what the loader decided from the data (sweep timing), with its evidence
-    for line in sequence.metadata.get("decisions") or ():
+    for line in sequence.decisions or ():
         typer.echo(f"front end: {line}", err=True)
     # the loader's and the front end's: skipped messages, pose topics not taken as truth
-    for line in sequence.metadata.get("warnings") or ():
+    for line in sequence.all_warnings():
         typer.echo(f"warning: {sequence.name}: {line}", err=True)
 
     sequence = with_true_corner_ids(sequence, source.front_end)
     rows = [{"estimator": "kiss-icp (front end)", "status": "ok"}]
     front_note = f"front end kiss-icp: {front['kiss_icp_ms_median']:.3g} ms per frame (median)" + (
-        f", ATE {front['kiss_icp_ate_rmse_m']:.4g} m against {sequence.metadata['reference_source']}"
+        f", ATE {front['kiss_icp_ate_rmse_m']:.4g} m against {sequence.reference_source}"
         if front["kiss_icp_ate_rmse_m"] is not None
         else ""
     )
@@ -419,7 +419,7 @@ def sensor_front_end(sequence, source, out: Path, disable: bool, claim) -> list[
         front_dir = out / "frontend"
         front_dir.mkdir(parents=True, exist_ok=True)
         summary = laser.summary()
-        figures = {**summary, "seconds": seconds, "topics": sequence.metadata.get("topics")}
+        figures = {**summary, "seconds": seconds, "topics": sequence.topics.as_dict()}
         figures["skipped"] = source.report.lines()
         from datasets.trajectory_io import write_atomic
 
@@ -434,12 +434,13 @@ def sensor_front_end(sequence, source, out: Path, disable: bool, claim) -> list[
                 else ""
             )
         )
-    topics = sequence.metadata.get("topics") or {}
-    used = ", ".join(f"{role} {topic}" for role, topic in topics.items() if topic)
+    used = ", ".join(
+        f"{role} {topic}" for role, topic in sequence.topics.as_dict().items() if topic
+    )
     notes.append(f"no lidar: no KISS-ICP front end; inputs: {used}")
-    for line in sequence.metadata.get("decisions") or ():
+    for line in sequence.decisions or ():
         typer.echo(f"front end: {line}", err=True)
-    for line in sequence.metadata.get("warnings") or ():
+    for line in sequence.all_warnings():
         typer.echo(f"warning: {sequence.name}: {line}", err=True)
     return notes
 
