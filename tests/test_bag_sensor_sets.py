@@ -288,3 +288,23 @@ def test_a_scan_sweeping_clockwise_is_stored_in_increasing_angle_and_bad_ones_ar
         SimpleNamespace(**{**vars(message), "time_increment": 5.0}), 0.0
     )
     assert scan.beam_times is None and "time_increment 5 s spreads 3 beams over 10 s" in dropped
+
+
+@pytest.mark.parametrize("kind", ("robot_localization", "laser"))
+def test_a_sensor_bag_is_opened_once_to_load_and_once_per_pass(
+    kind, robot_bags, laser_bags, monkeypatch
+) -> None:
+    """Issue #39: the load reads what it needs through one open reader (it opened the bag
+    four times for a robot_localization bag with named truth and for a 2-D laser bag),
+    and each pass over the stream opens it once."""
+    from rosbags.highlevel import AnyReader
+
+    opened = []
+    original = AnyReader.open
+    monkeypatch.setattr(AnyReader, "open", lambda self: opened.append(1) or original(self))
+    path = robot_bags["ros1"] if kind == "robot_localization" else laser_bags["ros1"][0]
+    sequence = load_bag(str(path), 0, TRUTH if kind == "robot_localization" else {})
+    assert len(opened) == 1
+    for passes in (1, 2):
+        assert sum(1 for _ in sequence.measurements()) > 10
+        assert len(opened) == 1 + passes

@@ -158,8 +158,15 @@ def small_bag(tmp_path_factory) -> Path:
     return write_lidar_bag(folder / "bag", 5, "ros2", options)
 
 
-def test_a_bag_pass_fills_its_report_once(small_bag) -> None:
+def test_a_bag_pass_fills_its_report_once(small_bag, monkeypatch) -> None:
+    """...and the bag is opened once to load and once per pass."""
+    from rosbags.highlevel import AnyReader
+
+    opened = []
+    original = AnyReader.open
+    monkeypatch.setattr(AnyReader, "open", lambda self: opened.append(1) or original(self))
     sequence = load_dataset(f"bag:{small_bag}", 0, {"kiss.max_num_threads": "1"})
+    assert len(opened) == 1
     report = sequence.pass_report
     assert sequence.topics.lidar == "/points" and sequence.topics.ground_truth is None
     # the simulator's corner sidecar is read, though its poses are not named as truth
@@ -174,11 +181,12 @@ def test_a_bag_pass_fills_its_report_once(small_bag) -> None:
     after = sequence.description()
     trimmed = [line for line in sequence.all_warnings() if line.startswith("trimmed")]
     assert report.passes == 1 and len(trimmed) == 1 and "x /imu" in trimmed[0]
+    assert len(opened) == 2
     assert after["kiss_icp"]["max_range_m"] > 0 and after["warnings"] == sequence.all_warnings()
     assert set(after) - set(before) == set() and after["topics"] == sequence.topics.as_dict()
     for _ in sequence.measurements():  # a second pass finds the same
         pass
-    assert report.passes == 2 and sequence.description() == after
+    assert report.passes == 2 and sequence.description() == after and len(opened) == 3
 
 
 def test_a_bag_run_writes_the_description_and_the_typed_fields(small_bag, tmp_path) -> None:

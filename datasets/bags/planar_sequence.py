@@ -45,10 +45,11 @@ def _planar_pose(samples: list[PoseSample], t: float) -> np.ndarray:
 
 def planar_sequence(
     name, path, settings, read_settings, laser_topic, role, noise_model, time_base,
-    ground_truth, initial, rates, metadata, described, decisions, warnings,
+    ground_truth, initial, rates, metadata, described, decisions, warnings, reader,
 ) -> tuple[Sequence, SensorSource]:  # fmt: skip
     """The 2-D laser sequence (module docstring); ``described``: the typed fields of the
-    sequence (reference source, topics) besides its warnings and decisions."""
+    sequence (reference source, topics) besides its warnings and decisions; ``reader``: the
+    bag, open, for the wheel odometry read whole at load."""
     odometry_report = ReadReport()
     samples: list[PoseSample] = [
         m
@@ -57,6 +58,7 @@ def planar_sequence(
             [role.topic],
             ReadSettings(**{**read_settings.__dict__, "time_base": None}),
             odometry_report,
+            reader,
         )
         if isinstance(m, PoseSample)
     ]

@@ -93,7 +93,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         if topics.lidar is None:  # IMU, wheel odometry, GPS, 2-D laser (sensor_source)
             from datasets.bags.sensor_source import sensor_sequence
 
-            return sensor_sequence(argument, path, settings, topics)
+            return sensor_sequence(argument, path, settings, topics, reader)
         decisions, wheel = _other_inputs(reader, path, types, topics, settings)
         imu_topic = topics.imu if settings.imu else None
         gps_topic = topics.gps if settings.gps else None
