@@ -376,7 +376,7 @@ def test_on_both_clips_a_two_degree_bend_departs(clip_runs) -> None:
 
 def _corridor_runs(folder: Path, seed: int, imu: bool) -> dict:
     from datasets.synthetic_lidar.writer import write_lidar_bag
-    from workbench.commands.bag import choose_estimators
+    from workbench.commands.bag_estimators import choose_estimators
     from workbench.metrics.summary import compute_metrics
     from workbench.registry import load_dataset
     from workbench.runner import RunRequest, execute
