@@ -149,7 +149,7 @@ def table(logs: list[str], estimators: list[str], data: dict, relations: dict) -
                     f"{metrics['divergence']}"
                 )
             notes.append(f"{log} {name}: {wall:.0f} s wall")
-        corners = sequence.metadata["corners"]
+        corners = sequence.pass_report.figures["corners"]  # filled by the runs
         notes.append(
             f"{log}: {scans} scans, {corners['corners_detected'] / scans:.2f} corners per scan, "
             f"{corners['corners_confirmed'] / max(corners['corners_detected'], 1):.2f} "

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from datasets.rotations import matrix_from_quat_wxyz, so3_log
-from workbench.commands.bag import choose_estimators
+from workbench.commands.bag_estimators import choose_estimators
 from workbench.registry import load_dataset
 from workbench.runner import RunRequest, execute
 

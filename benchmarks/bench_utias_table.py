@@ -21,7 +21,7 @@ import argparse
 import time
 from pathlib import Path
 
-from workbench.commands.bag import choose_estimators
+from workbench.commands.bag_estimators import choose_estimators
 from workbench.metrics.summary import compute_metrics
 from workbench.registry import load_dataset
 from workbench.runner import RunRequest, execute

@@ -27,7 +27,7 @@ seed, is removed from the stream and kept in ``GroundTruth.held_out_positions`` 
 Noise: the metadata's IMU densities; initial bias sigmas from gtsam's example prior
 (accelerometer 0.1 m/s^2, gyroscope 5e-5 rad/s); GPS sigma from gtsam's example noise
 (precision 1/0.07 per axis -> sigma sqrt(0.07) = 0.265 m); gravity 9.8 m/s^2 as in the
-example (``metadata["gravity_m_s2"]``).
+example (``Sequence.gravity_m_s2``).
 
 gtsam's ``IMUKittiExampleGPS`` has a counter (``included_imu_measurement_count``) that is
 never reset, so its bias between-factor sigma grows with the square root of *all* IMU
@@ -262,13 +262,13 @@ def load_folder(folder: Path, seed: int, config: KittiImuGpsOptions) -> Sequence
         initial_state=start,
         metadata={
             "source": str(folder),
-            "reference_source": "held-out GPS fixes",
             "seed": seed,
             "options": config.model_dump(),
-            "gravity_m_s2": GRAVITY_M_S2,
             "gps_fixes_used": int(len(used_gps)),
             "gps_fixes_held_out": int(len(held_gps)),
             "start_t": float(t0),
-            "warnings": truth_warnings,
         },
+        reference_source="held-out GPS fixes",
+        warnings=tuple(truth_warnings),
+        gravity_m_s2=GRAVITY_M_S2,
     )

@@ -11,7 +11,7 @@ motion-compensated is decided at load from the first scans (option ``point_times
 default; ``datasets.lidar.sweep_timing``): raw sweeps are timed by azimuth, with the spin
 direction and start found in them (``datasets.lidar.sweep_times``), compensated ones are read
 without times, and an undecided folder is read as compensated with a warning. The decision
-and its evidence are ``metadata["decisions"]`` (or a warning) and
+and its evidence are ``Sequence.decisions`` (or a warning) and
 ``metadata["sweep_timing"]``; ``point_times=field`` or ``azimuth`` states it instead. Both
 real KITTI clips in ``../shared/data`` are raw sweeps and are decided so. Read as
 compensated, an uncompensated sweep shows as the corners disagreeing with KISS-ICP's
@@ -42,6 +42,7 @@ from datasets.lidar.sweep_times import point_times_for
 from datasets.lidar.sweep_timing import SweepTimingDecision, decide_sweep_timing
 from datasets.measurements import PointCloud, Sensor
 from datasets.options import build_model, nest_dotted
+from datasets.pass_report import PassReport
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import GroundTruth, StateHistory
 from datasets.text_files import text_lines
@@ -430,11 +431,11 @@ def scans_sequence(
             last = stamp
             yield cloud
 
-    resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
-    reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
-    # datasets.Sequence metadata "warnings" (printed, and in every run's metrics.json): an
-    # undecided sweep timing, the stream's skips and the front end's heading warning, once
-    # the stream has run
+    # filled once the stream has run: the KISS-ICP settings used, the corner_tracking
+    # figures, the stream's skips and the front end's heading warning
+    pass_report = PassReport.expecting("kiss_icp", "corner_reobservation")
+    # Sequence.warnings (printed, and in every run's metrics.json): an undecided sweep
+    # timing, an untrusted stretch of the truth
     warnings: list[str] = list(timing.warnings)
 
     # the sequence starts at the front end's first pose (the first kept scan's; its sweep's
@@ -452,9 +453,11 @@ def scans_sequence(
         yield from with_front_end(
             clouds(), front_end, settings.point_clouds, settings.max_frames, emit_from_s=start
         )
-        resolved.update(front_end.resolved())
-        reobservation.update(front_end.tracker.stats.summary())
-        source.record_warnings(warnings)
+        pass_report.record(
+            source.pass_warnings(),
+            kiss_icp=front_end.resolved(),
+            corner_reobservation=front_end.tracker.stats.summary(),
+        )
 
     ground_truth = None
     if settings.ground_truth:
@@ -487,20 +490,17 @@ def scans_sequence(
         front_end=front_end.report if settings.odometry else None,
         metadata={
             "source": str(folder),
-            "reference_source": f"TUM file {settings.ground_truth}"
-            if settings.ground_truth
-            else None,
             "files": len(files),
-            "kiss_icp": resolved,
-            "corner_reobservation": reobservation,  # filled once the stream has run
             "time_order_problems": int(order_problem.size),
             "options": settings.model_dump(mode="json"),
-            "warnings": warnings,
-            # what the loader decided and why, to print as notes (a clear decision) beside
-            # the warnings (datasets.lidar.sweep_timing)
-            "decisions": [timing.text] if timing.clear else [],
             "sweep_timing": timing.as_dict(),
         },
+        reference_source=f"TUM file {settings.ground_truth}" if settings.ground_truth else None,
+        warnings=tuple(warnings),
+        # what the loader decided and why, to print as notes (a clear decision) beside
+        # the warnings (datasets.lidar.sweep_timing)
+        decisions=(timing.text,) if timing.clear else (),
+        pass_report=pass_report,
     ), source
 
 

@@ -265,4 +265,5 @@ def load_file(path: Path, config: VictoriaParkOptions) -> Sequence:
             "options": config.model_dump(),
             "odometry_noise": "the file's covariances" if model is None else model.as_dict(),
         },
+        landmark_ids=config.ids,
     )

@@ -56,7 +56,7 @@ class SmootherConfig(
     gravity_m_s2: float | None = Field(
         None,
         gt=0,
-        description="gravity magnitude [m/s^2]; None: sequence.metadata['gravity_m_s2'] or 9.81",
+        description="gravity magnitude [m/s^2]; None: the sequence's (Sequence.gravity_m_s2) or 9.81",
     )
     landmark_factor: Literal["bearing-range", "cartesian"] = Field(
         "bearing-range",

@@ -2,8 +2,8 @@
 motion model between keyframes.
 
 - 3-D: IMU preintegration (``smoothers.imu_graph.ImuMotion``), gravity from the config, the
-  sequence's metadata, or 9.81 m/s^2; without an IMU, the relative poses of lidar odometry
-  (``smoothers.spatial_odometry.SpatialOdometryMotion``).
+  sequence's (``Sequence.gravity_m_s2``), or 9.81 m/s^2; without an IMU, the relative poses
+  of lidar odometry (``smoothers.spatial_odometry.SpatialOdometryMotion``).
 - 2-D: odometry between-factors when the sequence has odometry (and ``use_odometry``),
   else the documented gyro-only constant-velocity model
   (``smoothers.planar_graph.PlanarMotion``).
@@ -60,7 +60,7 @@ def motion_model(config: SmootherConfig, sequence: Sequence) -> MotionModel:
             )
         return SpatialOdometryMotion()
     if sequence.dimension == 3:
-        gravity = c.gravity_m_s2 or float(sequence.metadata.get("gravity_m_s2", 9.81))
+        gravity = c.gravity_m_s2 or float(sequence.gravity_m_s2 or 9.81)
         return ImuMotion(
             ImuNoise.from_spec(sequence.noise, sequence.name),
             gravity,

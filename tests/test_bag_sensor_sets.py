@@ -111,7 +111,7 @@ def test_a_ros2_robot_localization_bag_under_workbench_run(robot_bags, tmp_path,
     assert metrics["ate_rmse_m"] < 0.2
     sequence = load_bag(str(bag), 0, TRUTH)
     assert sequence.sensors == {Sensor.IMU, Sensor.GPS, Sensor.ODOMETRY}
-    assert sequence.metadata["topics"]["odometry"] == "/odom"
+    assert sequence.topics.odometry == "/odom"
     # the start's heading is the IMU's (0.02 rad noise), not east and not the truth's
     yaw = 2 * np.arctan2(sequence.initial_state.rotation[3], sequence.initial_state.rotation[0])
     assert abs(np.rad2deg(yaw) - START_YAW_DEG) < 5.0 and np.allclose(
@@ -157,11 +157,7 @@ def test_topic_options_are_checked_with_hints(robot_bags):
         load_bag(bag, 0, {**TRUTH, "odometry_topic": "/ground_truth"})
     # named against the evidence: used, and the decision says what the evidence said
     named = load_bag(bag, 0, {"odometry_topic": "/odometry/filtered", "gps": "false"})
-    (line,) = [
-        d
-        for d in named.metadata["decisions"]
-        if d.startswith("odometry: /odometry/filtered as named")
-    ]
+    (line,) = [d for d in named.decisions if d.startswith("odometry: /odometry/filtered as named")]
     assert (
         "as named (odometry_topic)" in line
         and "by the evidence it would not be taken (its name says" in line
@@ -169,7 +165,7 @@ def test_topic_options_are_checked_with_hints(robot_bags):
     # without a wheel odometry and a GPS: the IMU alone, its start in its own orientation
     imu_only = load_bag(bag, 0, {"wheel_odometry": "false", "gps": "false"})
     assert imu_only.sensors == {Sensor.IMU}
-    assert "odometry: not used (wheel_odometry=false)" in imu_only.metadata["decisions"]
+    assert "odometry: not used (wheel_odometry=false)" in imu_only.decisions
 
 
 def test_wheel_increments_compose_to_the_pose_difference():
@@ -247,7 +243,7 @@ def test_a_laserscan_bag_is_a_planar_sequence_through_the_laser_front_end(
     path, written = laser_bags["sqlite3"]
     sequence = load_bag(str(path), 0, {})
     assert sequence.dimension == 2 and sequence.sensors == {Sensor.ODOMETRY, Sensor.LANDMARKS}
-    decisions = sequence.metadata["decisions"]
+    decisions = sequence.decisions
     assert any(
         d.startswith("2-D laser /scan: 361 beams from -135.00 deg by 0.75 deg (angle_max agrees)")
         for d in decisions
@@ -260,7 +256,7 @@ def test_a_laserscan_bag_is_a_planar_sequence_through_the_laser_front_end(
     )
     # the increments are the odometry's between scan stamps: 0.03 m and 0.005 rad each
     assert np.allclose([m.relative_pose[2] for m in frames], 0.005, atol=1e-9)
-    assert sequence.metadata["laser_corners"]["corners_detected"] > 0
+    assert sequence.pass_report.figures["laser_corners"]["corners_detected"] > 0
     out = tmp_path / "out"
     assert main(["bag", str(path), "--out", str(out), "--estimator", "ekf-slam", "--no-plots"]) == 0
     assert "front end: 2-D: /scan with /odom" in capsys.readouterr().err
@@ -292,3 +288,23 @@ def test_a_scan_sweeping_clockwise_is_stored_in_increasing_angle_and_bad_ones_ar
         SimpleNamespace(**{**vars(message), "time_increment": 5.0}), 0.0
     )
     assert scan.beam_times is None and "time_increment 5 s spreads 3 beams over 10 s" in dropped
+
+
+@pytest.mark.parametrize("kind", ("robot_localization", "laser"))
+def test_a_sensor_bag_is_opened_once_to_load_and_once_per_pass(
+    kind, robot_bags, laser_bags, monkeypatch
+) -> None:
+    """Issue #39: the load reads what it needs through one open reader (it opened the bag
+    four times for a robot_localization bag with named truth and for a 2-D laser bag),
+    and each pass over the stream opens it once."""
+    from rosbags.highlevel import AnyReader
+
+    opened = []
+    original = AnyReader.open
+    monkeypatch.setattr(AnyReader, "open", lambda self: opened.append(1) or original(self))
+    path = robot_bags["ros1"] if kind == "robot_localization" else laser_bags["ros1"][0]
+    sequence = load_bag(str(path), 0, TRUTH if kind == "robot_localization" else {})
+    assert len(opened) == 1
+    for passes in (1, 2):
+        assert sum(1 for _ in sequence.measurements()) > 10
+        assert len(opened) == 1 + passes

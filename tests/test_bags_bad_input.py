@@ -199,7 +199,7 @@ def test_empty_and_nan_clouds_and_backward_stamps_are_counted(tmp_path):
     sequence = load_bag(str(path), 0, options)
     kinds = [type(m).__name__ for m in sequence.measurements()]
     assert kinds.count("PointCloud") == 2 and kinds.count("Odometry") == 1
-    warned = sequence.metadata["warnings"]
+    warned = sequence.all_warnings()
     assert any("skipped 2 x /cloud at t=1.100000000: empty cloud" in line for line in warned)
     # with it, the clouds after its last sample are trimmed, counted and said
     sequence = load_bag(str(path), 0, {**options, "imu": "true"})
@@ -207,7 +207,7 @@ def test_empty_and_nan_clouds_and_backward_stamps_are_counted(tmp_path):
     assert kinds.count("PointCloud") == 1
     assert (
         "trimmed 3 x /cloud at t=1.100000000..1.300000000: after the end of the common time "
-        "base t=1.040000000 (last stamp on /imu)" in sequence.metadata["warnings"]
+        "base t=1.040000000 (last stamp on /imu)" in sequence.all_warnings()
     )
 
 
@@ -314,10 +314,10 @@ def _room_bag(path: Path, truth_x: float, imu_value: float = 0.0) -> Path:
 def test_a_pose_topic_is_truth_only_when_named(tmp_path: Path, capsys) -> None:
     bag = _room_bag(tmp_path / "room", 0.0)
     sequence = load_bag(str(bag), 0, {"kiss.max_num_threads": "1"})
-    assert sequence.ground_truth is None and sequence.metadata["reference_source"] is None
-    assert any("/odom not taken as truth unless named" in w for w in sequence.metadata["warnings"])
+    assert sequence.ground_truth is None and sequence.reference_source is None
+    assert any("/odom not taken as truth unless named" in w for w in sequence.all_warnings())
     named = load_bag(str(bag), 0, {"kiss.max_num_threads": "1", "ground_truth_topic": "/odom"})
-    assert len(named.ground_truth.pose) == 8 and named.metadata["reference_source"] == "topic /odom"
+    assert len(named.ground_truth.pose) == 8 and named.reference_source == "topic /odom"
     out = tmp_path / "out"
     argv = ["bag", str(bag), "--out", str(out), "--estimator", "dead-reckoning", "--no-plots"]
     assert main(argv) == 0

@@ -138,7 +138,7 @@ def _check_time_base(sequence) -> list:
     assert stamps[-1] <= base["spans"]["/points"][1] + 1e-9  # the last sweep's end
     before = [m.t for m in _messages(sequence.metadata["source"], "/imu") if m.t < sweep_end]
     assert len(before) > 10  # the 10 of the lead and those of the first sweep
-    trimmed = [w for w in sequence.metadata["warnings"] if w.startswith("trimmed")]
+    trimmed = [w for w in sequence.all_warnings() if w.startswith("trimmed")]
     assert trimmed == [
         f"trimmed {len(before)} x /imu at t={before[0]:.9f}..{before[-1]:.9f}: before the start "
         f"of the common time base t={sweep_end:.9f} (end of the first sweep on /points, the "
@@ -213,9 +213,9 @@ def test_leading_imu_and_wheel_odometry_without_truth(bags) -> None:
     # no truth at all: not the wheel odometry, nor the sidecar's corners (they are in the
     # truth topic's world frame, and this sequence's world is its first body frame)
     assert sequence.ground_truth is None
-    assert sequence.metadata["reference_source"] is None
-    assert "/wheel/odometry" not in sequence.metadata["topics"].values()
-    (unnamed,) = [w for w in sequence.metadata["warnings"] if "not taken as truth" in w]
+    assert sequence.reference_source is None
+    assert "/wheel/odometry" not in sequence.topics.as_dict().values()
+    (unnamed,) = [w for w in sequence.all_warnings() if "not taken as truth" in w]
     assert "pose topic(s) /ground_truth, /wheel/odometry not taken as truth unless named" in unnamed
     assert sequence.initial_state.velocity is None and np.allclose(
         sequence.initial_state.position, 0
@@ -229,8 +229,8 @@ def test_leading_imu_with_the_truth_named(bags) -> None:
     name = f"bag:{bags['ros2']}"
     sequence = load_dataset(name, 0, NAMED)
     truth = sequence.ground_truth.pose
-    assert sequence.metadata["reference_source"] == "topic /ground_truth"
-    assert not any("not taken as truth" in w for w in sequence.metadata["warnings"])
+    assert sequence.reference_source == "topic /ground_truth"
+    assert not any("not taken as truth" in w for w in sequence.all_warnings())
     _check_time_base(sequence)
     # the initial state is the truth at the start of the common interval (the first lidar
     # pose, one sweep after the truth's first pose: 0.15 m further on at 1.5 m/s)
@@ -250,8 +250,7 @@ def test_ros1_bag_with_two_odometry_topics(bags) -> None:
     unnamed = load_dataset(name, 0, DATA)
     assert unnamed.ground_truth is None or unnamed.ground_truth.pose is None
     assert any(
-        "/ground_truth, /wheel/odometry not taken as truth" in w
-        for w in unnamed.metadata["warnings"]
+        "/ground_truth, /wheel/odometry not taken as truth" in w for w in unnamed.all_warnings()
     )
     _check_time_base(unnamed)
     named = load_dataset(name, 0, NAMED)
@@ -307,7 +306,7 @@ def test_a_truth_topic_that_starts_late_sets_the_start(tmp_path) -> None:
     base = sequence.metadata["time_base"]
     assert base["start_s"] == pytest.approx(1.3) and base["start_by"] == "first stamp on /odom"
     assert base["end_s"] == pytest.approx(1.7) and base["end_by"] == "last stamp on /cloud"
-    trimmed = sorted(w for w in sequence.metadata["warnings"] if w.startswith("trimmed"))
+    trimmed = sorted(w for w in sequence.all_warnings() if w.startswith("trimmed"))
     assert trimmed == [
         "trimmed 3 x /cloud at t=1.000000000..1.200000000: before the start of the common "
         "time base t=1.300000000 (first stamp on /odom)",

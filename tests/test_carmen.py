@@ -68,7 +68,7 @@ def test_flaser_odom_fields_are_the_odometry_and_the_logged_pose_is_ignored(tmp_
     np.testing.assert_allclose([m.t for m in increments], 100.0 + 0.2 * np.arange(1, 6))
     assert sequence.initial_state.t == pytest.approx(100.0)
     assert sequence.ground_truth is None and sequence.dimension == 2
-    assert any("no ODOM lines" in line for line in sequence.metadata["warnings"])
+    assert any("no ODOM lines" in line for line in sequence.all_warnings())
 
 
 def test_param_laser_offset_is_the_mounting_else_zero_with_a_note(tmp_path) -> None:
@@ -79,7 +79,7 @@ def test_param_laser_offset_is_the_mounting_else_zero_with_a_note(tmp_path) -> N
     assert "robot_frontlaser_offset -0.04" in sequence.metadata["laser_mounting_source"]
     without = load(str(write_log(tmp_path / "b.clf", lines)), 0, {})
     assert without.metadata["laser_mounting"] == [0.0, 0.0, 0.0]
-    assert any("taken as 0" in line for line in without.metadata["warnings"])
+    assert any("taken as 0" in line for line in without.all_warnings())
     given = load(str(without_path := tmp_path / "b.clf"), 0, {"laser_offset_m": "0.1"})
     assert given.metadata["laser_mounting"][0] == pytest.approx(0.1) and without_path.exists()
 
@@ -115,10 +115,10 @@ def test_out_of_order_and_duplicated_lines_are_printed_with_evidence(tmp_path) -
     lines = [flaser(t, (0.05 * k, 0.0, 0.0)) for k, t in enumerate(stamps)]
     lines.insert(5, lines[4])  # a duplicated line
     sequence = load(str(write_log(tmp_path / "c.clf", lines)), 0, {})
-    counts = sequence.metadata["counts"]
+    counts = sequence.counts
     assert counts["scan_lines_dropped_duplicate"] == 1
     assert counts["scan_stamps_reread"] == 1 and counts["scan_lines_dropped_out_of_order"] == 0
-    text = " ".join(sequence.metadata["warnings"])
+    text = " ".join(sequence.all_warnings())
     assert "1 of 7 stamps go back in time" in text
     assert "line 6: '101.400000' read as 101.040000" in text  # the header takes two lines
     assert "1 dropped as duplicates" in text and "first at line 8" in text
@@ -169,8 +169,7 @@ def test_odom_lines_are_compared_and_usable_as_the_motion_input(tmp_path) -> Non
     path = write_log(tmp_path / "d.clf", ["SYNC tag 1 h 0", *lines])
     sequence = load(str(path), 0, {})
     assert any(
-        "equals the latest ODOM pose before it at 5 of 5" in w
-        for w in sequence.metadata["warnings"]
+        "equals the latest ODOM pose before it at 5 of 5" in w for w in sequence.all_warnings()
     )
     assert sequence.metadata["totals"]["skipped_SYNC"] == 1
     by_messages = load(str(path), 0, {"odometry": "messages"})
@@ -240,7 +239,7 @@ def test_corners_of_a_corner_room_are_emitted_without_ids(tmp_path) -> None:
     assert len(scans) == 2 and all(scan.ids is None for scan in scans)
     np.testing.assert_allclose(scans[0].points, [[3.0, 1.0]], atol=0.01)
     assert scans[0].covariances.shape == (1, 2, 2)
-    assert sequence.metadata["corners"]["corners_confirmed"] == 2
+    assert sequence.pass_report.figures["corners"]["corners_confirmed"] == 2
 
 
 def test_the_cli_reports_a_bad_log_in_one_error_line(tmp_path, capsys) -> None:

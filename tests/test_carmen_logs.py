@@ -30,11 +30,11 @@ def test_each_shared_log_loads_with_the_defaults(name, scans, reread) -> None:
     assert sequence.dimension == 2 and sequence.ground_truth is None
     assert sequence.sensors == frozenset({Sensor.ODOMETRY, Sensor.LANDMARKS})
     assert sequence.metadata["totals"]["scans_used"] == scans
-    counts = sequence.metadata["counts"]
+    counts = sequence.counts
     # the Intel log's unpadded microseconds are re-read, not dropped (one scan line is)
     assert (counts["scan_stamps_reread"] > 1000) is reread
     assert counts["scan_lines_dropped_out_of_order"] <= 1
-    assert any(line.startswith("odometry:") for line in sequence.metadata["warnings"])
+    assert any(line.startswith("odometry:") for line in sequence.all_warnings())
     stream = sequence.measurements()
     first = [next(stream) for _ in range(40)]
     increments = [m for m in first if isinstance(m, Odometry)]

@@ -51,7 +51,8 @@ def test_dropped_rows_are_listed_with_their_names() -> None:
         dimension=2,
         sensors=frozenset({Sensor.ODOMETRY}),
         stream=lambda: iter(()),
-        metadata={"counts": {"stale_repeats": 3, "unknown_barcodes": 0}, "warnings": ["w"]},
+        counts={"stale_repeats": 3, "unknown_barcodes": 0},
+        warnings=("w",),
     )
     lines = data_warnings(sequence)
     assert lines == [
@@ -68,7 +69,7 @@ def test_contested_single_hypothesis_association_is_a_warning() -> None:
     from workbench.degradations import CONTESTED_WARNING_FRACTION, association_warnings
     from workbench.metrics.summary import contested_fraction
 
-    sequence = Sequence("bag:x", 2, frozenset(), lambda: iter(()), metadata={})
+    sequence = Sequence("bag:x", 2, frozenset(), lambda: iter(()))
 
     def run(contested: int, judged: int = 100):
         recorder = EstimateRecorder(2)

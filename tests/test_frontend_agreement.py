@@ -348,7 +348,7 @@ def test_on_both_clips_every_lidar_only_estimator_follows_kiss_icp(clip_runs) ->
     alone, no departure, a pose at every frame; the corners' re-observation NIS per dof
     within 0.7-1.5 (``benchmarks/bench_lidar_clip.py`` prints the table)."""
     sequence = clip_runs["sequence"]
-    assert sequence.metadata["warnings"] == []
+    assert sequence.all_warnings() == []
     assert 0.7 <= sequence.front_end.reobservation_nis_per_dof() <= 1.5
     for name, (_, metrics) in clip_runs["runs"].items():
         figures = {key: metrics[key] for key in metrics if key.startswith("frontend_")}
@@ -376,7 +376,7 @@ def test_on_both_clips_a_two_degree_bend_departs(clip_runs) -> None:
 
 def _corridor_runs(folder: Path, seed: int, imu: bool) -> dict:
     from datasets.synthetic_lidar.writer import write_lidar_bag
-    from workbench.commands.bag import choose_estimators
+    from workbench.commands.bag_estimators import choose_estimators
     from workbench.metrics.summary import compute_metrics
     from workbench.registry import load_dataset
     from workbench.runner import RunRequest, execute

@@ -155,7 +155,7 @@ def test_without_imu_deskew_the_stream_is_as_before() -> None:
 
 def _kiss_yaw_errors(bag, imu_deskew: bool) -> tuple[np.ndarray, dict]:
     """KISS-ICP's per-frame yaw error against the bag's truth [deg], and the sequence's
-    metadata."""
+    description (``Sequence.description``: its metadata, warnings and the pass's figures)."""
     from datasets.bags.bag_options import BagOptions
     from datasets.bags.source import bag_sequence
     from datasets.lidar.corner_truth import interpolate_poses
@@ -171,7 +171,7 @@ def _kiss_yaw_errors(bag, imu_deskew: bool) -> tuple[np.ndarray, dict]:
             before, after = (matrix_from_quat_wxyz(q) for q in quaternions)
             error = (before.T @ after).T @ so3_exp(item.relative_pose[:3])
             errors.append(np.degrees(so3_log(error)[2]))
-    return np.array(errors), sequence.metadata
+    return np.array(errors), sequence.description()
 
 
 @pytest.mark.study

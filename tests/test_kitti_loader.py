@@ -32,10 +32,10 @@ def test_kitti_sequence_holds_out_the_requested_fraction_and_keeps_it_out_of_the
     # The start (fix #1) and the next fix define the initial state and are never held out.
     assert used_t[0] == sequence.initial_state.t and used[0].t < held_t.min()
     assert np.allclose(used[0].position, sequence.initial_state.position)
-    # The metadata's densities are the noise spec, gtsam's example gravity the metadata's.
+    # The metadata file's densities are the noise spec, gtsam's example gravity the sequence's.
     assert sequence.noise.gyro_noise_density == pytest.approx(0.000175)
     assert sequence.noise.accel_bias_walk == pytest.approx(0.000167)
-    assert sequence.metadata["gravity_m_s2"] == 9.8
+    assert sequence.gravity_m_s2 == 9.8
 
 
 def test_kitti_stream_is_time_ordered_starts_after_the_imu_gap_and_depends_on_the_seed():

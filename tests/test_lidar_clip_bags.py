@@ -229,7 +229,8 @@ def test_sources_agree_on_the_front_end(runs) -> None:
         assert runs[source]["corner_scans"] == runs["scans"]["corner_scans"], source
         counts = ("corners_detected", "corners_confirmed", "reobservation_pairs")
         ours, theirs = (
-            runs[key]["sequence"].metadata["corner_reobservation"] for key in (source, "scans")
+            runs[key]["sequence"].pass_report.figures["corner_reobservation"]
+            for key in (source, "scans")
         )
         assert {k: ours[k] for k in counts} == {k: theirs[k] for k in counts}, source
 
@@ -239,7 +240,7 @@ def test_bags_have_no_invented_truth(runs, source) -> None:
     sequence = runs[source]["sequence"]
     # a bag of clouds alone: no IMU, no GPS, and no truth made up by the loader
     assert sequence.sensors == {Sensor.POINT_CLOUD, Sensor.ODOMETRY, Sensor.LANDMARKS}
-    assert sequence.metadata["topics"]["lidar"] == TOPIC
+    assert sequence.topics.lidar == TOPIC
     truth = sequence.ground_truth
     assert truth is None or truth.pose is None or len(truth.pose) == 0
 
@@ -249,14 +250,14 @@ def test_read_as_compensated_every_source_warns_naming_the_option(runs, source) 
     """The clouds carry no per-point times and their corners disagree with KISS-ICP's
     heading beyond three standard errors: the folder and both bags say so (printed, and in
     every run's metrics.json)."""
-    warnings = runs[source]["sequence"].metadata["warnings"]
+    warnings = runs[source]["sequence"].all_warnings()
     heading = [line for line in warnings if "disagree with KISS-ICP's heading" in line]
     assert len(heading) == 1 and "point_times=azimuth" in heading[0], warnings
 
 
 @pytest.mark.parametrize("source", SOURCES)
 def test_corner_reobservation_nis_is_consistent(runs, source) -> None:
-    summary = runs[source]["sequence"].metadata["corner_reobservation"]
+    summary = runs[source]["sequence"].pass_report.figures["corner_reobservation"]
     nis = summary["reobservation_nis_per_dof"]
     print(source, "corner re-observation NIS/dof", nis)
     assert nis is not None and 0.7 <= nis <= 1.5, (source, summary)
@@ -302,6 +303,6 @@ def test_read_as_uncompensated_sweeps_every_estimator_meets_the_bounds(
     for estimator, (deviation, share, yaw) in figures.items():
         assert share < POSITION_SHARE_PERCENT, (source, estimator, deviation, share)
         assert yaw < AZIMUTH_YAW_DEG, (source, estimator, yaw)
-    nis = run["sequence"].metadata["corner_reobservation"]["reobservation_nis_per_dof"]
+    nis = run["sequence"].pass_report.figures["corner_reobservation"]["reobservation_nis_per_dof"]
     assert nis is not None and 0.7 <= nis <= 1.5, (source, nis)
-    assert run["sequence"].metadata["warnings"] == [], source
+    assert run["sequence"].all_warnings() == [], source

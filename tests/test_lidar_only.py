@@ -176,7 +176,7 @@ def test_on_the_real_clip_azimuth_times_take_away_the_corners_yaw_disagreement()
         for _ in sequence.measurements():
             pass
         figures[times] = source.front_end.corner_yaw_rate()
-        warnings[times] = list(sequence.metadata["warnings"])
+        warnings[times] = list(sequence.all_warnings())
     (rate, error), (deskewed_rate, deskewed_error) = figures["field"], figures["azimuth"]
     assert rate / error < -3.0, figures
     assert abs(deskewed_rate / deskewed_error) < 1.0, figures

@@ -222,7 +222,7 @@ def test_on_the_real_kitti_clip_the_default_front_end_is_kiss_icp_alone() -> Non
     sequence, source = scans_sequence(str(clip), ScanFolderOptions())
     for _ in sequence.measurements():
         pass
-    resolved = sequence.metadata["kiss_icp"]
+    resolved = sequence.pass_report.figures["kiss_icp"]
     assert {key: resolved[key] for key in ("max_range_m", "voxel_size_m", "max_range_source")} == {
         "max_range_m": 100.0,
         "voxel_size_m": 1.0,
@@ -267,5 +267,5 @@ def test_a_truth_file_that_jumps_is_excluded_from_the_scoring_and_said(tmp_path)
     assert interval.start_s == pytest.approx(t[140]) and interval.end_s == pytest.approx(t[142])
     assert any(
         "truth file" in line and "not trusted in 1 interval" in line
-        for line in sequence.metadata["warnings"]
+        for line in sequence.all_warnings()
     )

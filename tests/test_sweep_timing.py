@@ -62,9 +62,9 @@ def test_the_real_kitti_clips_are_decided_raw_sweeps_clockwise_from_behind(clip)
     assert 150.0 < low <= high < 210.0
     assert evidence["compensated_cut_clouds_fraction"] < 0.7
     assert evidence["travel_m_per_sweep"] > 0.4  # 4-8 m/s
-    assert sequence.metadata["decisions"] == [timing["text"]]
+    assert sequence.decisions == (timing["text"],)
     assert "not motion-compensated" in timing["text"] and "clockwise" in timing["text"]
-    assert not any("sweep timing" in line for line in sequence.metadata["warnings"])
+    assert not any("sweep timing" in line for line in sequence.all_warnings())
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +121,7 @@ def test_a_synthetic_bag_without_times_is_decided_raw_and_timed_as_its_sensor_wa
     assert _timing(load_dataset(f"bag:{corridor['timed']}", 0, QUIET))["outcome"] == "times"
     assert cloud.t == timed.t and len(cloud.points) == len(timed.points)
     np.testing.assert_allclose(cloud.point_times, timed.point_times, atol=1e-4, rtol=0)
-    assert sequence.metadata["decisions"] == [timing["text"]]
+    assert sequence.decisions == (timing["text"],)
 
 
 def test_a_synthetic_compensated_bag_is_decided_compensated(corridor):
@@ -136,7 +136,7 @@ def test_a_synthetic_compensated_bag_is_decided_compensated(corridor):
     assert evidence["compensated_cut_clouds_fraction"] >= 0.7
     assert abs(evidence["compensated_cut_at_deg"] - 180.0) <= 2.0
     assert evidence["compensated_cut_ratio"] >= 3.0
-    assert sequence.metadata["decisions"] == [timing["text"]]
+    assert sequence.decisions == (timing["text"],)
     clouds = [m for m in sequence.measurements() if isinstance(m, PointCloud)]
     assert clouds and all(cloud.point_times is None for cloud in clouds[:3])
 
@@ -152,8 +152,8 @@ def test_a_sensor_standing_still_leaves_the_timing_undecided_with_a_warning(tmp_
     assert timing["outcome"] == "undecided" and timing["point_times"] == "field"
     assert timing["evidence"]["travel_m_per_sweep"] < 0.01
     assert "barely moves" in timing["text"]
-    assert sequence.metadata["decisions"] == []
-    assert timing["text"] in sequence.metadata["warnings"]
+    assert sequence.decisions == ()
+    assert timing["text"] in sequence.all_warnings()
 
 
 def test_stated_timing_overrides_the_decision(corridor):

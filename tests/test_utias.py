@@ -104,7 +104,7 @@ def test_robot1_stream_times_and_kinds(robot1) -> None:
 @needs_data
 def test_robot1_quirks_are_counted(robot1) -> None:
     sequence, stream = robot1
-    counts = sequence.metadata["counts"]
+    counts = sequence.counts
     assert counts["robot_barcodes"] > 500  # other robots are seen often
     assert 0 < counts["stale_repeats"] < 200
     assert counts["vicon_heading_samples_repaired"] > 0
@@ -161,7 +161,7 @@ def test_ids_can_be_withheld_and_options_checked() -> None:
     assert len(sequence.ground_truth.scan_ids) == len(scans)
     assert sequence.ground_truth.pose.t[-1] <= 60.0
     # sightings after duration_s are not selected, which is not a drop (no warning)
-    assert sequence.metadata["counts"]["out_of_range_times"] == 0
+    assert sequence.counts["out_of_range_times"] == 0
     with pytest.raises(InputError, match="known keys"):
         load(f"{UTIAS}#robot1", 0, {"idz": "false"})
     with pytest.raises(InputError, match="robotN"):
@@ -234,9 +234,9 @@ def test_unknown_robot_duplicate_and_out_of_range_sightings_are_dropped_and_coun
     sequence = load_mrclam(folder, 1, UtiasOptions(**options))
     assert any(
         "1 of 8 sightings lie outside the odometry's time span" in line and "trimmed" in line
-        for line in sequence.metadata["warnings"]
+        for line in sequence.all_warnings()
     )
-    counts = sequence.metadata["counts"]
+    counts = sequence.counts
     assert counts["duplicate_sightings"] == 1
     assert counts["unknown_barcodes"] == 1
     assert counts["robot_barcodes"] == 1
@@ -255,7 +255,7 @@ def test_sightings_going_back_in_time_inside_the_span_are_an_error(tmp_path: Pat
     with pytest.raises(InputError, match=r"1 of 4 sightings go back in time"):
         load_mrclam(folder, 1, UtiasOptions(**RAW_ODOMETRY))
     accepted = load_mrclam(folder, 1, UtiasOptions(**RAW_ODOMETRY, max_dropped_fraction=0.3))
-    assert accepted.metadata["counts"]["time_going_back"] == 1
+    assert accepted.counts["time_going_back"] == 1
 
 
 def test_the_workbench_run_of_a_trimmed_edge_exits_0_with_the_warning(
@@ -287,7 +287,7 @@ def test_irregular_printed_times_gap_and_duplicate_rows(tmp_path: Path) -> None:
     options = UtiasOptions(**RAW_ODOMETRY, max_dropped_fraction=0.05)
     sequence = load_mrclam(folder, 1, options)
     assert sequence.metadata["time_source"] == "printed"
-    assert sequence.metadata["counts"]["odometry_time_not_increasing"] == 1
+    assert sequence.counts["odometry_time_not_increasing"] == 1
     gaps = sequence.metadata["odometry_gaps"]
     assert len(gaps) == 1 and gaps[0][1] == pytest.approx(2.5 - 0.015 * 19, abs=1e-3)
     stream = list(sequence.measurements())
@@ -308,11 +308,11 @@ def test_a_vicon_glitch_is_excluded_from_the_scoring_and_from_the_fits(tmp_path:
         truth[i] = f"{t} {float(x) + 3.0:.5f} {y} {h}"
     folder = write_folder(tmp_path / "d", odometry, ["0.10 72 2.0 0.1"], truth)
     sequence = load_mrclam(folder, 1, UtiasOptions(**RAW_ODOMETRY))
-    assert sequence.metadata["counts"]["vicon_samples_excluded"] == 4
-    assert sequence.metadata["excluded_truth_s"] == pytest.approx(3 * 0.02)
+    assert sequence.counts["vicon_samples_excluded"] == 4
+    assert sequence.excluded_truth_s == pytest.approx(3 * 0.02)
     (line,) = sequence.metadata["excluded_truth"]
     assert line.startswith("wrong_track") and "4.000" in line and "4.060" in line
-    assert any("Vicon not trusted in 1 interval" in w for w in sequence.metadata["warnings"])
+    assert any("Vicon not trusted in 1 interval" in w for w in sequence.all_warnings())
     truth_t = sequence.ground_truth.pose.t
     trusted = sequence.ground_truth.trusted(truth_t)
     assert np.array_equal(np.flatnonzero(~trusted), np.arange(200, 204))
@@ -414,8 +414,8 @@ def test_read_table_fast_path_is_bit_identical_to_reading_row_by_row(tmp_path: P
 def test_a_folder_with_one_robot_fits_nothing_and_says_so(tmp_path: Path) -> None:
     folder = write_folder(tmp_path / "d", grid_odometry(50), ["0.10 72 2.0 0.1"])
     sequence = load_mrclam(folder, 1, UtiasOptions(odometry_noise="white"))
-    assert sequence.metadata["calibration"].startswith("none")
-    assert any("holds no other robot" in line for line in sequence.metadata["warnings"])
+    assert sequence.calibration.startswith("none")
+    assert any("holds no other robot" in line for line in sequence.all_warnings())
     assert sequence.metadata["odometry_scales"]["turn"] == 1.0
     assert sequence.noise.sighting_correlation is None
 
@@ -447,13 +447,13 @@ def test_the_default_calibration_never_sees_the_scored_robots_truth(tmp_path: Pa
     }
     original = load(f"{UTIAS}#robot1", 0, options)
     corrupted = load(f"{folder}#robot1", 0, options)
-    assert "not the scored robot 1" in corrupted.metadata["calibration"]
+    assert "not the scored robot 1" in corrupted.calibration
     for key in ("speed", "turn", "coupling"):
         assert (
             corrupted.metadata["odometry_scales"][key] == original.metadata["odometry_scales"][key]
         )
     own = {**options, "calibration": "own-truth"}
-    assert "own Vicon" in load(f"{folder}#robot1", 0, own).metadata["calibration"]
+    assert "own Vicon" in load(f"{folder}#robot1", 0, own).calibration
     assert (
         load(f"{folder}#robot1", 0, own).metadata["odometry_scales"]["speed"]
         != load(f"{UTIAS}#robot1", 0, own).metadata["odometry_scales"]["speed"]

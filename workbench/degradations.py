@@ -1,7 +1,8 @@
 """Degradations a run must not hide: said on the screen, written to metrics.json.
 
-- **Data**: rows a loader dropped or repaired (``Sequence.metadata['counts']``, each count
-  with its name), and the warnings a loader states (``Sequence.metadata['warnings']``).
+- **Data**: rows a loader dropped or repaired (``Sequence.counts``, each count with its
+  name), and the warnings a loader states and a pass over the stream adds
+  (``Sequence.all_warnings``).
 - **Contested association**: without ids, a single hypothesis decides each sighting once;
   where more than ``CONTESTED_WARNING_FRACTION`` of those decisions had another
   interpretation within the new-landmark gate, the run warns (its map may hold pairings
@@ -37,12 +38,12 @@ WINDOW_S = 10.0
 def data_warnings(sequence: Sequence) -> list[str]:
     """One line per non-zero count of dropped or repaired rows, and the loader's warnings."""
     lines = []
-    counts = sequence.metadata.get("counts") or {}
+    counts = sequence.counts or {}
     dropped = {name: int(value) for name, value in counts.items() if int(value) > 0}
     if dropped:
         listed = ", ".join(f"{name.replace('_', ' ')} {value}" for name, value in dropped.items())
         lines.append(f"{sequence.name}: rows dropped or repaired by the loader: {listed}")
-    lines.extend(f"{sequence.name}: {text}" for text in sequence.metadata.get("warnings") or ())
+    lines.extend(f"{sequence.name}: {text}" for text in sequence.all_warnings())
     return lines
 
 
@@ -96,9 +97,9 @@ def association_warnings(estimate: Estimate, sequence: Sequence, estimator: str)
 
 def _known_id_sightings(diagnostics, sequence: Sequence) -> np.ndarray:
     """(A,) bool: sightings of scans that carried ids: datasets with an ``ids`` option
-    (the simulator, UTIAS, Victoria Park) say whether they attached them."""
-    with_ids = (sequence.metadata.get("options") or {}).get("ids") is True
-    return np.full(len(diagnostics.assoc_t), with_ids)
+    (the simulator, UTIAS, Victoria Park) say whether they attached them
+    (``Sequence.landmark_ids``)."""
+    return np.full(len(diagnostics.assoc_t), sequence.landmark_ids)
 
 
 def _worst_window(times: np.ndarray) -> float:

@@ -160,7 +160,7 @@ def write_run_plots(
     trajectories: dict[str, Trajectory] = {}
     styles: dict[str, dict] = {}
     if truth is not None and truth.pose is not None and len(truth.pose):
-        source = sequence.metadata.get("reference_source")
+        source = sequence.reference_source
         label = f"reference ({source})" if source else "reference"
         trajectories[label] = truth.pose
         styles[label] = {"color": REFERENCE_COLOUR, "linewidth": 1.0}

@@ -108,13 +108,13 @@ def run_provenance(result: RunResult) -> dict[str, Any]:
         "dataset_label": dataset_label if request.dataset_label else result.sequence.name,
         "estimator_label": estimator_label,
         "seed": request.seed,
-        "reference_source": result.sequence.metadata.get("reference_source"),
+        "reference_source": result.sequence.reference_source,
         # truth the loader excluded from the scoring (e.g. Vicon glitches) [s]
-        "excluded_truth_s": result.sequence.metadata.get("excluded_truth_s"),
+        "excluded_truth_s": result.sequence.excluded_truth_s,
         # the truth's untrusted intervals, scored nowhere (datasets.truth_quality)
         "excluded_truth": [interval.line() for interval in excluded],
         # what the loader fitted its models on (UTIAS: other robots' Vicon, or the scored one's)
-        "calibration": result.sequence.metadata.get("calibration"),
+        "calibration": result.sequence.calibration,
         "git_revision": git_revision(),
         "package_versions": package_versions(),
     }
@@ -177,7 +177,8 @@ def write_run_folder(
             "dataset": result.sequence.name,
             "seed": request.seed,
             "data_options": dict(request.data_options),
-            "dataset_metadata": result.sequence.metadata,
+            # the source's description (datasets.sequence.Sequence.description)
+            "dataset_metadata": result.sequence.description(),
             "config": result.config.model_dump(mode="json"),
         }
         write_atomic(folder / CONFIG_FILE, yaml.safe_dump(resolved, sort_keys=True))
@@ -223,7 +224,7 @@ def write_run_folder(
         )
         # what a loader or front end decided from the data, with its evidence (printed as
         # notes): kept beside the run so a reader knows how the data were read
-        metrics["decisions"] = list(result.sequence.metadata.get("decisions") or ())
+        metrics["decisions"] = list(result.sequence.decisions or ())
         metrics.update(run_provenance(result))
         if plot_formats:
             from workbench.plots import write_run_plots

@@ -21,6 +21,7 @@ from datasets.errors import InputError
 from datasets.laser2d.frontend import Laser2dFrontEnd
 from datasets.laser2d.scan import PlanarScan
 from datasets.measurements import Measurement, Odometry, Sensor
+from datasets.pass_report import PassReport
 from datasets.rotations import matrix_from_quat_wxyz, wrap_angle, yaw_from_quat_wxyz
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 from datasets.state import GroundTruth, StateHistory
@@ -44,9 +45,11 @@ def _planar_pose(samples: list[PoseSample], t: float) -> np.ndarray:
 
 def planar_sequence(
     name, path, settings, read_settings, laser_topic, role, noise_model, time_base,
-    ground_truth, initial, rates, metadata, decisions, warnings,
+    ground_truth, initial, rates, metadata, described, decisions, warnings, reader,
 ) -> tuple[Sequence, SensorSource]:  # fmt: skip
-    """The 2-D laser sequence (module docstring)."""
+    """The 2-D laser sequence (module docstring); ``described``: the typed fields of the
+    sequence (reference source, topics) besides its warnings and decisions; ``reader``: the
+    bag, open, for the wheel odometry read whole at load."""
     odometry_report = ReadReport()
     samples: list[PoseSample] = [
         m
@@ -55,6 +58,7 @@ def planar_sequence(
             [role.topic],
             ReadSettings(**{**read_settings.__dict__, "time_base": None}),
             odometry_report,
+            reader,
         )
         if isinstance(m, PoseSample)
     ]
@@ -65,7 +69,8 @@ def planar_sequence(
     front_end = Laser2dFrontEnd(settings.laser)
     source = SensorSource(front_end)
     corner = settings.laser.corner
-    figures: dict = {}
+    # filled once the stream has run: the front end's corner figures, the pass's warnings
+    pass_report = PassReport.expecting("laser_corners")
 
     def stream() -> Iterator[Measurement]:
         report = ReadReport()
@@ -114,10 +119,8 @@ def planar_sequence(
             landmarks = result.landmark_scan(settings.laser.confirm_corners)
             if landmarks is not None:
                 yield landmarks
-        figures.update(front_end.summary())
-        source.record_warnings(warnings)
+        pass_report.record(source.pass_warnings(), laser_corners=front_end.summary())
 
-    metadata["laser_corners"] = figures  # filled once the stream has run
     metadata["odometry_noise"] = noise_model.model.as_dict()
     rotation = matrix_from_quat_wxyz(initial.rotation)
     planar_initial = InitialState(
@@ -146,5 +149,9 @@ def planar_sequence(
         noise=noise,
         initial_state=planar_initial,
         metadata=metadata,
+        warnings=tuple(warnings),
+        decisions=tuple(decisions),
+        pass_report=pass_report,
+        **described,
     )
     return sequence, source

@@ -68,53 +68,57 @@ from datasets.measurements import Measurement
 
 
 def read_stream(
-    path: Path, topics: list[str], settings: ReadSettings, report: ReadReport
+    path: Path, topics: list[str], settings: ReadSettings, report: ReadReport, reader=None
 ) -> Iterator[tuple[str, Measurement]]:
-    """``(topic, measurement)`` of the given topics, lazily, in stamp order (module docstring)."""
+    """``(topic, measurement)`` of the given topics, lazily, in stamp order (module docstring).
+    ``reader``: the bag already open (``open_bag``), else it is opened here, once."""
+    if reader is None:
+        with open_bag(path) as opened:
+            yield from read_stream(path, topics, settings, report, opened)
+        return
     heap: list[tuple[float, int, str, Measurement]] = []
     counter = itertools.count()
     last_on_topic: dict[str, float] = {}
     emitted = -np.inf
-    with open_bag(path) as reader:
-        for topic, msgtype, stamp, message in iter_messages(reader, path, topics, report=report):
-            if stamp <= last_on_topic.get(topic, -np.inf):
-                report.skip(
-                    topic,
-                    "stamp went backwards (or repeated)",
-                    stamp,
-                    f"previous {last_on_topic[topic]:.9f}",
-                )
-                continue
-            if stamp < emitted:
-                report.skip(
-                    topic, "stamp older than the reorder window", stamp, f"already at {emitted:.9f}"
-                )
-                continue
-            base = settings.time_base
-            if base is not None and msgtype == POINTCLOUD2:
-                outside = not base.keeps_cloud(stamp)
-            else:
-                outside = base is not None and not base.contains(stamp)
-            if outside and msgtype == POINTCLOUD2:  # trimmed undecoded: decoding is the cost
-                last_on_topic[topic] = stamp
-                report.trim(topic, stamp, settings.time_base)
-                continue
-            # other messages are checked first, so a NaN IMU sample counts as a skip wherever
-            measurement = convert(path, topic, msgtype, stamp, message, settings, report)
+    for topic, msgtype, stamp, message in iter_messages(reader, path, topics, report=report):
+        if stamp <= last_on_topic.get(topic, -np.inf):
+            report.skip(
+                topic,
+                "stamp went backwards (or repeated)",
+                stamp,
+                f"previous {last_on_topic[topic]:.9f}",
+            )
+            continue
+        if stamp < emitted:
+            report.skip(
+                topic, "stamp older than the reorder window", stamp, f"already at {emitted:.9f}"
+            )
+            continue
+        base = settings.time_base
+        if base is not None and msgtype == POINTCLOUD2:
+            outside = not base.keeps_cloud(stamp)
+        else:
+            outside = base is not None and not base.contains(stamp)
+        if outside and msgtype == POINTCLOUD2:  # trimmed undecoded: decoding is the cost
             last_on_topic[topic] = stamp
-            if measurement is None:
-                continue
-            if outside:
-                report.trim(topic, stamp, settings.time_base)
-                continue
-            heapq.heappush(heap, (stamp, next(counter), topic, measurement))
-            while heap and heap[0][0] < stamp - settings.reorder_window_s:
-                emitted, _, out_topic, out = heapq.heappop(heap)
-                yield out_topic, out
-        while heap:
+            report.trim(topic, stamp, settings.time_base)
+            continue
+        # other messages are checked first, so a NaN IMU sample counts as a skip wherever
+        measurement = convert(path, topic, msgtype, stamp, message, settings, report)
+        last_on_topic[topic] = stamp
+        if measurement is None:
+            continue
+        if outside:
+            report.trim(topic, stamp, settings.time_base)
+            continue
+        heapq.heappush(heap, (stamp, next(counter), topic, measurement))
+        while heap and heap[0][0] < stamp - settings.reorder_window_s:
             emitted, _, out_topic, out = heapq.heappop(heap)
             yield out_topic, out
-        _check_counts(path, reader, topics, settings, report)
+    while heap:
+        emitted, _, out_topic, out = heapq.heappop(heap)
+        yield out_topic, out
+    _check_counts(path, reader, topics, settings, report)
     check_skips(path, topics, settings.max_skipped_fraction, report)
 
 

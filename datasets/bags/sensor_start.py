@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.bags.bag_file import iter_messages, open_bag
+from datasets.bags.bag_file import iter_messages
 from datasets.bags.ground_truth import initial_state_from_truth
 from datasets.bags.read_report import ReadReport
 from datasets.bags.time_base import TimeBase
@@ -155,6 +155,7 @@ def _odometry_velocity(
 
 
 def sensor_bag_start(
+    reader,
     path: Path,
     settings,
     time_base: TimeBase,
@@ -166,40 +167,39 @@ def sensor_bag_start(
     warnings: list[str],
 ) -> tuple[InitialState, str]:
     """The initial state and the decision line saying where it comes from (module
-    docstring)."""
+    docstring); ``reader``: the bag, open (``open_bag``)."""
     start_s = time_base.start_s
     truth = ground_truth.pose if ground_truth is not None else None
     if gps_topic is None and truth is not None:
         initial = initial_state_from_truth(start_s, truth)
         return initial, f"start: from the truth topic at t={initial.t:.3f} (its frame is the world)"
-    with open_bag(path) as reader:
-        quaternion, sigma, orientation_text = None, 1e-3, ""
-        reasons = []
-        if imu_topic:
-            quaternion, sigma, imu_text = _imu_orientation(reader, path, imu_topic, start_s)
-            orientation_text = imu_text
-            if quaternion is None:
-                reasons.append(imu_text)
-        if quaternion is None and gps_topic and role.topic:
-            yaw, course_text = _gps_course_heading(
-                reader, path, gps_topic, role.topic, role.evidence.msgtype, origin, start_s
-            )
-            if yaw is not None:
-                quaternion, sigma, orientation_text = _yaw_quaternion(yaw), 0.05, course_text
-            else:
-                reasons.append(course_text)
+    quaternion, sigma, orientation_text = None, 1e-3, ""
+    reasons = []
+    if imu_topic:
+        quaternion, sigma, imu_text = _imu_orientation(reader, path, imu_topic, start_s)
+        orientation_text = imu_text
         if quaternion is None:
-            quaternion, sigma = np.array([1.0, 0.0, 0.0, 0.0]), 1e-3
-            why = f" ({'; '.join(reasons)})" if reasons else ""
-            if gps_topic:
-                orientation_text = f"level, facing east: assumed{why}"
-                warnings.append(
-                    f"start heading unknown{why}: east assumed; the GPS-aided estimates are "
-                    "wrong where the vehicle started facing elsewhere"
-                )
-            else:
-                orientation_text = f"the first body frame{why}"
-        velocity, velocity_text = _odometry_velocity(reader, path, role, start_s, quaternion)
+            reasons.append(imu_text)
+    if quaternion is None and gps_topic and role.topic:
+        yaw, course_text = _gps_course_heading(
+            reader, path, gps_topic, role.topic, role.evidence.msgtype, origin, start_s
+        )
+        if yaw is not None:
+            quaternion, sigma, orientation_text = _yaw_quaternion(yaw), 0.05, course_text
+        else:
+            reasons.append(course_text)
+    if quaternion is None:
+        quaternion, sigma = np.array([1.0, 0.0, 0.0, 0.0]), 1e-3
+        why = f" ({'; '.join(reasons)})" if reasons else ""
+        if gps_topic:
+            orientation_text = f"level, facing east: assumed{why}"
+            warnings.append(
+                f"start heading unknown{why}: east assumed; the GPS-aided estimates are "
+                "wrong where the vehicle started facing elsewhere"
+            )
+        else:
+            orientation_text = f"the first body frame{why}"
+    velocity, velocity_text = _odometry_velocity(reader, path, role, start_s, quaternion)
     if gps_topic:
         world = (
             f"world: ENU about the first fix of {gps_topic} (lat {origin[0]:.7f}, lon "

@@ -1,7 +1,7 @@
 """What stands behind a bag's or a scan folder's ``Sequence`` besides its stream: the front
 end that made its odometry and corners, and what the last pass over the stream skipped, for
-the loader's metadata and ``workbench bag``'s front-end report to read once the stream has
-run. ``LidarSource``: a bag with a lidar, or a scan folder (the KISS-ICP and corner front
+the stream's ``PassReport`` and ``workbench bag``'s front-end report to read once the stream
+has run. ``LidarSource``: a bag with a lidar, or a scan folder (the KISS-ICP and corner front
 end); ``SensorSource``: a bag without one (the 2-D laser front end when its scans are used).
 """
 
@@ -22,18 +22,15 @@ class LidarSource:
         self.report = ReadReport()
         self.lidar_messages = lidar_messages
 
-    def record_warnings(self, warnings: list[str]) -> None:
-        """Add the last pass's skips and the front end's heading, warm-up and IMU deskew
-        warnings to ``warnings`` (``datasets.Sequence`` metadata), each once however often
-        the stream is read."""
+    def pass_warnings(self) -> list[str]:
+        """The last pass's skips and the front end's heading, warm-up and IMU deskew
+        warnings (for ``datasets.pass_report.PassReport.record``)."""
         front_end = [
             self.front_end.heading_warning(),
             self.front_end.settling_warning(),
             self.front_end.imu_deskew_warning(),
         ]
-        for line in [*self.report.lines(), *(line for line in front_end if line)]:
-            if line not in warnings:
-                warnings.append(line)
+        return [*self.report.lines(), *(line for line in front_end if line)]
 
 
 class SensorSource:
@@ -48,7 +45,6 @@ class SensorSource:
         self.laser_front_end = laser_front_end
         self.report = ReadReport()
 
-    def record_warnings(self, warnings: list[str]) -> None:
-        for line in self.report.lines():
-            if line not in warnings:
-                warnings.append(line)
+    def pass_warnings(self) -> list[str]:
+        """The last pass's skips (for ``datasets.pass_report.PassReport.record``)."""
+        return self.report.lines()

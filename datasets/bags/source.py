@@ -19,9 +19,10 @@ the streams the sequence is built from: the lidar (its last sweep counted to its
 IMU when used, and the ground-truth topic when named (``datasets.bags.spans.topic_spans``,
 ``common_time_base``). GPS fixes outside it are dropped too, but a sparse GPS topic does not
 narrow it; topics not read (wheel odometry, an unnamed pose topic) play no part. Every
-dropped message is counted in ``metadata["warnings"]`` (``trimmed N x TOPIC at t=..: before
-the start of the common time base t=.. (first stamp on /points)``, once the stream has
-run); the interval and each stream's span are ``metadata["time_base"]``; the initial state
+dropped message is counted in the pass's warnings (``Sequence.pass_report``: ``trimmed N x
+TOPIC at t=..: before the start of the common time base t=.. (first stamp on /points)``,
+once the stream has run); the interval and each stream's span are ``metadata["time_base"]``;
+the initial state
 is at the interval's start. With lidar odometry the interval starts at the front end's
 first pose (``start_at_first_pose``): where the first kept sweep ends when it is deskewed,
 else at that cloud's stamp. The estimators' first odometry increment starts there, and a
@@ -51,7 +52,7 @@ from datasets.bags.sequence_sources import LidarSource
 from datasets.bags.spans import max_point_time, start_at_first_pose, topic_spans
 from datasets.bags.time_base import common_time_base
 from datasets.bags.topic_roles import OdometryRole, choose_odometry, not_wheel_words
-from datasets.bags.topics import BagTopics, discover_topics, topic_types
+from datasets.bags.topics import BagTopics, SensorTopics, discover_topics, topic_types
 from datasets.bags.wheel_odometry import PoseSample, WheelIncrements
 from datasets.errors import InputError
 from datasets.lidar.corner_truth import read_corner_truth, sidecar_for, with_true_corner_ids
@@ -59,6 +60,7 @@ from datasets.lidar.frontend import LidarFrontEnd
 from datasets.lidar.frontend_stream import with_front_end
 from datasets.measurements import Sensor
 from datasets.options import build_model, nest_dotted
+from datasets.pass_report import PassReport
 from datasets.sequence import NoiseSpec, Sequence
 
 
@@ -91,7 +93,7 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         if topics.lidar is None:  # IMU, wheel odometry, GPS, 2-D laser (sensor_source)
             from datasets.bags.sensor_source import sensor_sequence
 
-            return sensor_sequence(argument, path, settings, topics)
+            return sensor_sequence(argument, path, settings, topics, reader)
         decisions, wheel = _other_inputs(reader, path, types, topics, settings)
         imu_topic = topics.imu if settings.imu else None
         gps_topic = topics.gps if settings.gps else None
@@ -175,10 +177,11 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
     source = LidarSource(front_end, lidar_messages)
     topic_list = [topic for topic in (topics.lidar, imu_topic, gps_topic, wheel.topic) if topic]
 
-    resolved: dict = {}  # filled once the stream has run: the KISS-ICP settings used
-    reobservation: dict = {}  # filled once the stream has run: corner_tracking figures
-    # datasets.Sequence metadata "warnings": printed by the workbench (prefixed with the
-    # dataset's name) and written to every run's metrics.json
+    # filled once the stream has run: the KISS-ICP settings used, the corner_tracking
+    # figures, and the pass's warnings
+    pass_report = PassReport.expecting("kiss_icp", "corner_reobservation")
+    # Sequence.warnings: printed by the workbench (prefixed with the dataset's name) and
+    # written to every run's metrics.json
     warnings = (
         list(timing.warnings)
         + list(load_report.lines())
@@ -204,9 +207,11 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
             settings.max_frames,
             emit_from_s=time_base.start_s if time_base else None,
         )
-        resolved.update(front_end.resolved())
-        reobservation.update(front_end.tracker.stats.summary())
-        source.record_warnings(warnings)
+        pass_report.record(
+            source.pass_warnings(),
+            kiss_icp=front_end.resolved(),
+            corner_reobservation=front_end.tracker.stats.summary(),
+        )
 
     sensors = {Sensor.POINT_CLOUD} if settings.point_clouds else set()
     sensors |= {Sensor.IMU} if imu_topic else set()
@@ -245,28 +250,26 @@ def bag_sequence(argument: str, settings: BagOptions) -> tuple[Sequence, LidarSo
         front_end=front_end.report if settings.odometry else None,
         metadata={
             "source": str(path),
-            "reference_source": f"topic {topics.ground_truth}" if topics.ground_truth else None,
-            "warnings": warnings,  # datasets.Sequence metadata: printed and in metrics.json
-            "topics": {
-                "lidar": topics.lidar,
-                "imu": imu_topic,
-                "ground_truth": topics.ground_truth,
-                "gps": gps_topic,
-                "odometry": wheel.topic,
-                "laser": None,
-            },
             # the common interval every stream is trimmed to (module docstring)
             "time_base": time_base.as_dict() if time_base else None,
             "gps_origin": list(origin) if origin else None,
-            "kiss_icp": resolved,
-            "corner_reobservation": reobservation,  # filled once the stream has run
-            "corner_sidecar": str(sidecar) if truth is not None else None,
             "options": settings.model_dump(mode="json"),
-            # what the loader decided and why, to print as notes (a clear decision) beside
-            # the warnings (datasets.lidar.sweep_timing)
-            "decisions": ([timing.text] if timing.clear else []) + decisions,
             "sweep_timing": timing.as_dict(),
         },
+        reference_source=f"topic {topics.ground_truth}" if topics.ground_truth else None,
+        warnings=tuple(warnings),
+        # what the loader decided and why, to print as notes (a clear decision) beside
+        # the warnings (datasets.lidar.sweep_timing)
+        decisions=tuple(([timing.text] if timing.clear else []) + decisions),
+        topics=SensorTopics(
+            lidar=topics.lidar,
+            imu=imu_topic,
+            ground_truth=topics.ground_truth,
+            gps=gps_topic,
+            odometry=wheel.topic,
+        ),
+        corner_sidecar=sidecar if truth is not None else None,
+        pass_report=pass_report,
     ), source
 
 

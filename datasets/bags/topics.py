@@ -8,7 +8,7 @@ for one sensor, is an ``InputError`` naming the topics and how a user chooses on
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from datasets.bags.message_types import (
@@ -34,6 +34,33 @@ class BagTopics:
     gps: str | None = None
     unnamed_truth: tuple[str, ...] = ()
     laser: str | None = None
+
+
+@dataclass(frozen=True)
+class SensorTopics:
+    """The topic a bag's sequence reads in each role (``Sequence.topics``), None where it
+    reads none: a topic the bag has but the sequence does not use (``imu=false``, GPS
+    without a valid fix, the IMU of a 2-D laser sequence) is None too.
+
+    Attributes:
+        lidar: the PointCloud2 topic of the front end.
+        imu: the Imu topic.
+        ground_truth: the named truth topic (Odometry or PoseStamped).
+        gps: the NavSatFix topic.
+        odometry: the wheel odometry the increments are made from (``topic_roles``).
+        laser: the LaserScan topic of a 2-D laser sequence.
+    """
+
+    lidar: str | None = None
+    imu: str | None = None
+    ground_truth: str | None = None
+    gps: str | None = None
+    odometry: str | None = None
+    laser: str | None = None
+
+    def as_dict(self) -> dict[str, str | None]:
+        """``{role: topic}`` in the order above (printed and written in this order)."""
+        return asdict(self)
 
 
 def topic_types(reader) -> dict[str, str]:

@@ -15,8 +15,8 @@ pose, at the origin. No ground truth ships with the logs (``ground_truth`` is No
 come with ``--data relations=FILE``, for every dataset). The logged laser poses ``x y theta``
 (corrected by the logging software of the day) are never used.
 
-Decided at load, counted in ``metadata['counts']`` and printed as one line each
-(``metadata['warnings']``, with the evidence):
+Decided at load, counted in ``Sequence.counts`` and printed as one line each
+(``Sequence.warnings``, with the evidence):
 - *stamps*: duplicated lines dropped; lines out of time order repaired where their stamp
   reads as unpadded microseconds, else dropped (``datasets.carmen.stamps``; the Intel log
   has about a thousand);

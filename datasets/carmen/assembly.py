@@ -25,6 +25,7 @@ from datasets.laser2d.frontend import Laser2dFrontEnd
 from datasets.laser2d.scan import PlanarScan
 from datasets.measurements import Measurement, Odometry, Sensor
 from datasets.odometry_noise import OdometryNoiseModel, mean_heading_density
+from datasets.pass_report import PassReport
 from datasets.sequence import InitialState, NoiseSpec, Sequence
 
 
@@ -195,7 +196,8 @@ def carmen_source(
         for t, scan in zip(times, scans)
     ]
     front_end = Laser2dFrontEnd(options)
-    corner_figures: dict = {}  # filled once the stream has run
+    # the front end's corner figures, filled once the stream has run
+    pass_report = PassReport.expecting("corners")
 
     def stream() -> Iterator[Measurement]:
         for index, scan in enumerate(planar):
@@ -214,7 +216,7 @@ def carmen_source(
             landmarks = result.landmark_scan(options.confirm_corners)
             if landmarks is not None:
                 yield landmarks
-        corner_figures.update(front_end.summary())
+        pass_report.record(corners=front_end.summary())
 
     beams = scans[0].angles()
     field_of_view = float(np.rad2deg(beams[-1] - beams[0] + scans[0].angle_step_rad))
@@ -232,27 +234,12 @@ def carmen_source(
     )
     metadata = {
         "source": str(path),
-        "reference_source": None,
         "laser": options.laser,
         "laser_kinds": kinds,
         "laser_mounting": [float(value) for value in mounting],
         "laser_mounting_source": mounting_source,
         "odometry_source": source,
         "odometry_noise": model.as_dict(),
-        # rows dropped or repaired (workbench.degradations lists every non-zero one)
-        "counts": {
-            "scan_stamps_reread": int(len(repair.reread)),
-            "scan_lines_dropped_out_of_order": int(len(repair.dropped)),
-            "scan_lines_dropped_duplicate": int(len(repair.duplicates)),
-            "odom_stamps_reread": 0 if odo_repair is None else int(len(odo_repair.reread)),
-            "odom_lines_dropped_out_of_order": 0
-            if odo_repair is None
-            else int(len(odo_repair.dropped)),
-            "odom_lines_dropped_duplicate": 0
-            if odo_repair is None
-            else int(len(odo_repair.duplicates)),
-            "stale_odometry_scans_spread": stale.scans if options.stale_odometry == "spread" else 0,
-        },
         "totals": {
             "laser_lines": len(chosen),
             "laser_lines_other": other,
@@ -264,9 +251,21 @@ def carmen_source(
         },
         "span_s": float(times[-1] - times[0]),
         "path_length_m": float(np.hypot(increments[:, 0], increments[:, 1]).sum()),
-        "corners": corner_figures,  # filled once the stream has run
         "options": options.model_dump(mode="json"),
-        "warnings": warnings,
+    }
+    # rows dropped or repaired (workbench.degradations lists every non-zero one)
+    counts = {
+        "scan_stamps_reread": int(len(repair.reread)),
+        "scan_lines_dropped_out_of_order": int(len(repair.dropped)),
+        "scan_lines_dropped_duplicate": int(len(repair.duplicates)),
+        "odom_stamps_reread": 0 if odo_repair is None else int(len(odo_repair.reread)),
+        "odom_lines_dropped_out_of_order": 0
+        if odo_repair is None
+        else int(len(odo_repair.dropped)),
+        "odom_lines_dropped_duplicate": 0
+        if odo_repair is None
+        else int(len(odo_repair.duplicates)),
+        "stale_odometry_scans_spread": stale.scans if options.stale_odometry == "spread" else 0,
     }
     sequence = Sequence(
         name=name,
@@ -283,5 +282,9 @@ def carmen_source(
             velocity_sigma_m_s=0.5,
         ),
         metadata=metadata,
+        reference_source=None,
+        warnings=tuple(warnings),
+        counts=counts,
+        pass_report=pass_report,
     )
     return sequence, front_end

@@ -278,9 +278,9 @@ def laser2d_scenario(seed: int, options: Laser2dScenarioOptions) -> Sequence:
             "scenario": "laser2d",
             "seed": seed,
             "options": options.model_dump(mode="json"),
-            "reference_source": "simulated truth",
             "corner_nees": corner_nees,
             "corners": front_end.summary(),
             "path_length_m": float(np.hypot(true_increments[:, 0], true_increments[:, 1]).sum()),
         },
+        reference_source="simulated truth",
     )

@@ -329,7 +329,7 @@ def with_true_corner_ids(sequence, front_end):
     """``sequence`` with ``GroundTruth.scan_ids`` of the front end's corner scans (the true id
     of each corner from the sidecar, -1 for a false detection), running the front end over the
     stream first if it has not run (it is cached: estimators pay nothing again). Unchanged
-    without a sidecar (``metadata["corner_sidecar"]``), ground-truth poses or corners.
+    without a sidecar (``Sequence.corner_sidecar``), ground-truth poses or corners.
 
     Why at the loader: map NEES, landmark RMSE and association precision map estimator ids to
     true ids through these. Without them the mapping falls back to equal ids, which for a
@@ -338,7 +338,7 @@ def with_true_corner_ids(sequence, front_end):
     ``workbench run`` and the suites, where only ``workbench bag`` had attached them."""
     from dataclasses import replace
 
-    sidecar = sequence.metadata.get("corner_sidecar")
+    sidecar = sequence.corner_sidecar
     truth = sequence.ground_truth
     if not sidecar or truth is None or truth.pose is None or not front_end.settings.corners:
         return sequence
@@ -350,5 +350,5 @@ def with_true_corner_ids(sequence, front_end):
         for frame in front_end.frames
         if frame.corners is not None and len(frame.corners.points)
     ]
-    scan_ids = true_corner_ids(frames, read_corner_truth(Path(sidecar)), truth.pose)
+    scan_ids = true_corner_ids(frames, read_corner_truth(sidecar), truth.pose)
     return replace(sequence, ground_truth=replace(truth, scan_ids=scan_ids))

@@ -312,5 +312,7 @@ def build_sequence(
             positions=data.landmark_positions[order].copy(),
             frame=Frame.WORLD,
         ),
-        metadata={**metadata, "reference_source": "simulated truth"},
+        metadata=metadata,
+        reference_source="simulated truth",
+        landmark_ids=with_ids,
     )

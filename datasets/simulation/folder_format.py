@@ -19,7 +19,7 @@ import numpy as np
 from datasets.errors import InputError
 from datasets.measurements import GyroSample, ImuSample, LandmarkScan, Measurement, Sensor
 from datasets.odometry_noise import OdometryNoiseModel
-from datasets.sequence import InitialState, NoiseSpec, Sequence
+from datasets.sequence import InitialState, NoiseSpec, Sequence, split_description
 from datasets.sighting_correlation import Autocorrelation, SightingCorrelation
 from datasets.state import BlockName, Frame, GroundTruth, LandmarkMap, StateBlock, StateHistory
 from datasets.trajectory import Trajectory
@@ -182,7 +182,7 @@ def write_sequence_folder(sequence: Sequence, out_dir: str | Path) -> Path:
         "direction_count": direction_count,
         "noise": _json_ready(dataclasses.asdict(sequence.noise)),
         "initial_state": None if initial is None else _json_ready(dataclasses.asdict(initial)),
-        "metadata": _json_ready(sequence.metadata),
+        "metadata": _json_ready(sequence.description()),
         "files": sorted(files),
     }
     files["sequence.json"] = json.dumps(description, sort_keys=True, indent=2) + "\n"
@@ -395,6 +395,7 @@ def read_sequence_folder(path: str | Path) -> Sequence:
         for index in order:
             yield dataclasses.replace(measurements[index])
 
+    metadata, typed = split_description(description.get("metadata") or {})
     return Sequence(
         name=name,
         dimension=d,
@@ -404,7 +405,9 @@ def read_sequence_folder(path: str | Path) -> Sequence:
         noise=_noise_spec(noise_fields),
         initial_state=initial_state,
         known_landmarks=known,
-        metadata=description.get("metadata") or {},
+        metadata=metadata,
+        landmark_ids=not ids_withheld,
+        **typed,
     )
 
 

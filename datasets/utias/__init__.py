@@ -24,7 +24,7 @@ What the stream contains (time-ordered; at equal times motion first, then the sc
   its covariance by default; ``landmark_conversion=first-order``: ``p = r (cos b, sin b)``
   with ``J diag(sr^2, sb^2) J^T``).
 
-Quirks handled (all counted in ``Sequence.metadata['counts']``):
+Quirks handled (all counted in ``Sequence.counts``):
 - *Rounded time column.* This copy is resampled on a 0.02 s grid but prints 5 significant
   digits, so after 1000 s the times are rounded to 0.1 s. When every printed odometry and
   ground-truth time is consistent with ``row index x grid_step_s`` within its printing
@@ -43,7 +43,7 @@ Quirks handled (all counted in ``Sequence.metadata['counts']``):
 - *Vicon heading glitches*: the resampling interpolated some headings the long way round
   across +/-pi (runs of 1-5 samples). ``repair_heading_glitches`` replaces every run whose
   implied rate exceeds ``max_heading_rate_rad_s`` by the short-way interpolation between
-  the good samples around it; the number of repaired samples is in the metadata.
+  the good samples around it; the number of repaired samples is counted.
 - *Swapped landmark labels*: in dataset 1 barcodes 18 and 61 (subjects 11 and 17) are
   swapped with respect to ``Landmark_Groundtruth.dat`` (the robots see barcode 18 where
   subject 17 is surveyed). The swap is detected from the data, not assumed
@@ -55,7 +55,8 @@ Quirks handled (all counted in ``Sequence.metadata['counts']``):
   repaired) against its own motion and the raw odometry: dropouts, freezes, jumps, wrong
   tracks between a jump away and back, headings against the direction of travel, motion
   the odometry contradicts. Its intervals are ``GroundTruth.excluded`` (scored nowhere,
-  listed in the metadata's ``excluded_truth`` and warned), and no calibration fits on them.
+  listed in the metadata's ``excluded_truth``, their total in ``Sequence.excluded_truth_s``,
+  and warned), and no calibration fits on them.
 
 Fitted at load (``datasets.utias.calibration``; ``calibration`` option): the odometry
 calibration above, the odometry noise model (``odometry_noise``), the sightings'
@@ -65,7 +66,7 @@ camera's detection probability by range (``detection_probability``,
 robots by default (``calibration=other-robots``: never the truth the run is scored on),
 of the scored robot itself (``calibration=own-truth``: tuning on the test set, for
 comparison) or not at all (``calibration=none``). Each is stated in ``Sequence.noise`` and
-in the metadata (``metadata['calibration']`` says the source in one line), and each can be
+in the metadata (``Sequence.calibration`` says the source in one line), and each can be
 switched off or given.
 
 Ground truth: Vicon poses (heading repaired), world and body velocity by central

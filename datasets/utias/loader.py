@@ -213,14 +213,12 @@ def load_mrclam(
     time_source, origin = recording.time_source, recording.origin
     metadata = {
         "source": str(folder),
-        "reference_source": "Vicon",
         "robot": robot,
         "time_source": time_source,
         "time_origin_s": float(origin),
         "measurement_time_uncertainty_s": 0.05
         if time_source == "row_grid" and odo_t[-1] + origin >= 1000
         else 0.0,
-        "counts": {key: int(value) for key, value in counts.items()},
         "odometry_gaps": long_gaps,
         "swapped_labels": (
             "as in the file"
@@ -228,11 +226,9 @@ def load_mrclam(
             else ", ".join(f"barcode {a} <-> {b} survey positions" for a, b in scored.swaps)
             or "none detected"
         ),
-        "excluded_truth_s": excluded_s,
         "excluded_truth": [interval.line() for interval in excluded],
         "options": config.model_dump(),
         "scans": len(scans),
-        "calibration": calibration.summary,
         "odometry_noise": None if odometry_model is None else odometry_model.as_dict(),
         "odometry_scales": scales,
         "sighting_correlation": None
@@ -241,7 +237,6 @@ def load_mrclam(
         "detection_probability": None
         if calibration.detection is None
         else calibration.detection.as_dict(),
-        "warnings": warnings,
     }
     return Sequence(
         name=name,
@@ -252,6 +247,12 @@ def load_mrclam(
         noise=noise,
         initial_state=initial_state,
         metadata=metadata,
+        reference_source="Vicon",
+        warnings=tuple(warnings),
+        counts={key: int(value) for key, value in counts.items()},
+        excluded_truth_s=excluded_s,
+        calibration=calibration.summary,
+        landmark_ids=config.ids,
     )
 
 
