@@ -44,7 +44,7 @@ from datasets.bags.spans import topic_spans
 from datasets.bags.time_base import common_time_base
 from datasets.bags.topic_roles import OdometryRole, choose_odometry
 from datasets.bags.topics import BagTopics, SensorTopics, topic_types
-from datasets.bags.wheel_odometry import PoseSample, WheelIncrements, WheelNoise
+from datasets.bags.wheel_odometry import WheelIncrements, WheelNoise
 from datasets.errors import InputError
 from datasets.measurements import Measurement, Sensor
 from datasets.pass_report import PassReport
@@ -203,13 +203,11 @@ def sensor_sequence(
             if noise_model is not None
             else None
         )
-        for _, measurement in read_stream(path, topic_list, read_settings, report):
-            if isinstance(measurement, PoseSample):
-                odometry = increments.add(measurement)
-                if odometry is not None:
-                    yield odometry
-            else:
-                yield measurement
+        read = (m for _, m in read_stream(path, topic_list, read_settings, report))
+        if increments is None:
+            yield from read
+        else:
+            yield from increments.convert(read)
         counts = (
             {}
             if increments is None

@@ -53,7 +53,7 @@ from datasets.bags.spans import max_point_time, start_at_first_pose, topic_spans
 from datasets.bags.time_base import common_time_base
 from datasets.bags.topic_roles import OdometryRole, choose_odometry, not_wheel_words
 from datasets.bags.topics import BagTopics, SensorTopics, discover_topics, topic_types
-from datasets.bags.wheel_odometry import PoseSample, WheelIncrements
+from datasets.bags.wheel_odometry import WheelIncrements
 from datasets.errors import InputError
 from datasets.lidar.corner_truth import read_corner_truth, sidecar_for, with_true_corner_ids
 from datasets.lidar.frontend import LidarFrontEnd
@@ -321,10 +321,4 @@ def wheel_increments(measurements, wheel: OdometryRole, settings: BagOptions, ti
         max_rate_hz=settings.odometry_max_rate_hz,
         start_s=time_base.start_s if time_base else None,
     )
-    for measurement in measurements:
-        if isinstance(measurement, PoseSample):
-            odometry = increments.add(measurement)
-            if odometry is not None:
-                yield odometry
-        else:
-            yield measurement
+    yield from increments.convert(measurements)

@@ -31,12 +31,13 @@ calibrate-noise`` replaces the default planar model.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from datasets.errors import InputError
-from datasets.measurements import Odometry, Sensor
+from datasets.measurements import Measurement, Odometry, Sensor
 from datasets.odometry_noise import OdometryNoiseModel, read_model_file
 from datasets.rotations import (
     matrix_from_quat_wxyz,
@@ -262,6 +263,17 @@ class WheelIncrements:
     _pending: tuple[np.ndarray, np.ndarray, float, float] | None = field(default=None)
     emitted: int = 0
     composed: int = 0
+
+    def convert(self, measurements: Iterable[Measurement]) -> Iterator[Measurement]:
+        """``measurements`` with each ``PoseSample`` (the odometry topic's) replaced by the
+        increment it completes, when one is due; every other measurement as it is."""
+        for measurement in measurements:
+            if isinstance(measurement, PoseSample):
+                odometry = self.add(measurement)
+                if odometry is not None:
+                    yield odometry
+            else:
+                yield measurement
 
     def add(self, sample: PoseSample) -> Odometry | None:
         """The increment ending at ``sample`` when one is due, else None."""
