@@ -25,14 +25,54 @@ RUNS = 2
 
 
 @pytest.fixture(scope="module")
-def uninterrupted(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The tiny suite, run once without interruption on two local processes."""
+def uninterrupted_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, str]:
+    """The tiny suite, run once without interruption on two local processes, through the
+    command a user types, in a terminal 100 columns wide: (out, stdout, stderr)."""
     out = tmp_path_factory.mktemp("bench") / "tiny"
+    environment = {**os.environ, "COLUMNS": "100", "OPENBLAS_NUM_THREADS": "1"}
+    environment.pop("LINES", None)
     # PNG is the default; the PDF is asked for, as a paper figure would be.
-    bench(
-        "tiny", RUNS, out, workers=2, plots=True, show_progress=False, plot_formats=("png", "pdf")
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "workbench.cli",
+            "bench",
+            "tiny",
+            "--runs",
+            str(RUNS),
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+            "--plot-format",
+            "png,pdf",
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+        env=environment,
+        timeout=600,
     )
-    return out
+    assert done.returncode == 0, done.stderr
+    return out, done.stdout, done.stderr
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(uninterrupted_run: tuple[Path, str, str]) -> Path:
+    return uninterrupted_run[0]
+
+
+def test_bench_tiny_fits_100_columns(uninterrupted_run: tuple[Path, str, str]) -> None:
+    """The terminal table fits the terminal it is printed on: no line longer than 100
+    characters under ``COLUMNS=100``, units in the headers, the legend under the tables
+    (``tests/test_terminal_width.py`` has the table-level cases)."""
+    out, stdout, stderr = uninterrupted_run
+    long = [line for line in (stdout + stderr).splitlines() if len(line) > 100]
+    assert not long, long
+    assert "[m]" in stdout and "[s]" in stdout and "NEES/dof" in stdout and "per dof" in stdout
+    for mark in ("✓", "▲", "▼", "·", "ˢ"):
+        assert mark in stdout.split("sim:guerreiro-loop")[-1], mark
+    assert "sim:circle" in stdout and f"table: {out / 'table.md'}" in stdout
 
 
 def _metrics_files(out: Path) -> list[Path]:
