@@ -47,7 +47,7 @@ def uninterrupted_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, s
             "2",
             "--plot-format",
             "png,pdf",
-        ],  # fmt: skip
+        ],
         capture_output=True,
         text=True,
         env=environment,
