@@ -24,6 +24,14 @@ from workbench.results.tables import markdown_table, non_timing_columns
 RUNS = 2
 
 
+def _bench_tiny(out: Path, *options: str) -> list[str]:
+    """The command a user types to run the tiny suite's ``RUNS`` runs into ``out``."""
+    return [
+        sys.executable, "-m", "workbench.cli", "bench", "tiny", "--runs", str(RUNS),
+        "--out", str(out), *options,
+    ]  # fmt: skip
+
+
 @pytest.fixture(scope="module")
 def uninterrupted_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, str]:
     """The tiny suite, run once without interruption on two local processes, through the
@@ -33,21 +41,7 @@ def uninterrupted_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, s
     environment.pop("LINES", None)
     # PNG is the default; the PDF is asked for, as a paper figure would be.
     done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "workbench.cli",
-            "bench",
-            "tiny",
-            "--runs",
-            str(RUNS),
-            "--out",
-            str(out),
-            "--workers",
-            "2",
-            "--plot-format",
-            "png,pdf",
-        ],
+        _bench_tiny(out, "--workers", "2", "--plot-format", "png,pdf"),
         capture_output=True,
         text=True,
         env=environment,
@@ -126,20 +120,7 @@ def _group_alive(group: int) -> bool:
 
 def test_killed_sweep_resumes_without_redoing_runs(uninterrupted: Path, tmp_path: Path) -> None:
     out = tmp_path / "killed"
-    command = [
-        sys.executable,
-        "-m",
-        "workbench.cli",
-        "bench",
-        "tiny",
-        "--runs",
-        str(RUNS),
-        "--out",
-        str(out),
-        "--workers",
-        "1",
-        "--no-plots",
-    ]
+    command = _bench_tiny(out, "--workers", "1", "--no-plots")
     process = subprocess.Popen(
         command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
     )
