@@ -22,8 +22,7 @@ narrow it; topics not read (wheel odometry, an unnamed pose topic) play no part.
 dropped message is counted in the pass's warnings (``Sequence.pass_report``: ``trimmed N x
 TOPIC at t=..: before the start of the common time base t=.. (first stamp on /points)``,
 once the stream has run); the interval and each stream's span are ``metadata["time_base"]``;
-the initial state
-is at the interval's start. With lidar odometry the interval starts at the front end's
+the initial state is at the interval's start. With lidar odometry the interval starts at the front end's
 first pose (``start_at_first_pose``): where the first kept sweep ends when it is deskewed,
 else at that cloud's stamp. The estimators' first odometry increment starts there, and a
 deskewed first sweep is read but not emitted. The front end's odometry and corners of the
