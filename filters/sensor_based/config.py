@@ -195,9 +195,25 @@ class SensorBasedConfig(
         "odometry_lateral_sigma_m_s",
         "used where the dataset states no odometry noise model (its lateral term otherwise)",
     )
+    measured_hold_s: float | None = Field(
+        1.0,
+        gt=0,
+        description="a visible feature's measured value y stands in A(t, y) for at most this "
+        "long after its scan [s]; later it is non-visible (its estimate stands in); None: "
+        "until the next scan, however long the gap (the filter module's docstring: a stale y "
+        "turns the bias term into a drift across gaps; 1 s is longer than the scan period of "
+        "every shared recording, so only gaps are affected)",
+    )
     earth_frame: bool = Field(
         True,
-        description="export the Earth-frame trajectory derived from consecutive body-frame maps as the pose",
+        description="export the Earth-frame trajectory (earth_frame_source) as the pose",
+    )
+    earth_frame_source: Literal["map_alignment", "filter_state"] = Field(
+        "map_alignment",
+        description="how the Earth-frame pose is found (Guerreiro et al. 2013, section I): "
+        "map_alignment: closed-form alignment of consecutive body-frame maps, anchored to an "
+        "Earth map (earth_frame); filter_state: the Earth frame as non-visible origin and axis "
+        "features of the filter (earth_state)",
     )
 
 

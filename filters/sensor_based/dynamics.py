@@ -133,6 +133,7 @@ def propagate_in_place(
     noise: ProcessNoise,
     dimension: int,
     discretization: Discretization = "euler",
+    undisturbed: np.ndarray | None = None,
 ) -> np.ndarray:
     """One prediction step (Guerreiro et al. eq. (10) and section IV-A).
 
@@ -165,6 +166,8 @@ def propagate_in_place(
         noise: disturbance model.
         dimension: d (2 or 3).
         discretization: "euler" (eq. (10)) or "exact".
+        undisturbed: (F,) bool, features that take no disturbance (the Earth frame's,
+            ``earth_state``); None: none.
 
     Returns:
         x_next (n,); ``covariance`` is replaced by ``F Sigma F^T + Xi`` in place.
@@ -219,7 +222,7 @@ def propagate_in_place(
     else:
         raise ValueError(f"unknown discretization {discretization!r}")
 
-    diagonal, gyro_factor = process_noise_factors(features, is_position, noise, dt, d)
+    diagonal, gyro_factor = process_noise_factors(features, is_position, noise, dt, d, undisturbed)
     if count:
         _transform_in_place(
             covariance, nv, phi_vehicle.reshape(count * d, nv), phi_own, gyro_factor
@@ -244,6 +247,7 @@ def propagate(
     noise: ProcessNoise,
     dimension: int,
     discretization: Discretization = "euler",
+    undisturbed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``propagate_in_place`` on a copy: (x_next (n,), covariance_next (n, n))."""
     predicted = np.array(covariance, dtype=float, copy=True)
@@ -258,6 +262,7 @@ def propagate(
         noise,
         dimension,
         discretization,
+        undisturbed,
     )
     return x_next, predicted
 
@@ -331,20 +336,29 @@ def _transform_in_place(
 
 
 def process_noise_factors(
-    features: np.ndarray, is_position: np.ndarray, noise: ProcessNoise, dt: float, dimension: int
+    features: np.ndarray,
+    is_position: np.ndarray,
+    noise: ProcessNoise,
+    dt: float,
+    dimension: int,
+    undisturbed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``Xi_F`` of one step of length ``dt`` as ``diag(diagonal) + [0; N] [0; N]^T``
     (see ``process_covariance``): returns (diagonal (n,), N (L, r)) with
-    ``N = sqrt(Ts) sigma_g G``.
+    ``N = sqrt(Ts) sigma_g G``. ``undisturbed`` (F,) bool: features without disturbance
+    (the Earth frame's); the gyro noise still reaches them through ``G``.
     """
     d = dimension
     r = rate_dimension(d)
     count = features.shape[0]
+    disturbance = np.where(is_position, noise.landmark_m**2, noise.direction**2)
+    if undisturbed is not None:
+        disturbance = np.where(undisturbed, 0.0, disturbance)
     diagonal = dt * np.concatenate(
         [
             np.broadcast_to(np.asarray(noise.velocity_m_s, dtype=float) ** 2, (d,)),
             np.full(r, noise.gyro_bias_rad_s**2),
-            np.repeat(np.where(is_position, noise.landmark_m**2, noise.direction**2), d),
+            np.repeat(disturbance, d),
         ]
     )
     if count == 0 or noise.gyro_noise_density <= 0.0:

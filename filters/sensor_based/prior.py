@@ -23,6 +23,7 @@ from filters.sensor_based.config import (
 )
 from filters.sensor_based.dynamics import ProcessNoise, rate_dimension
 from filters.sensor_based.earth_frame import EarthFrameTracker
+from filters.sensor_based.earth_state import frame_from_pose
 from filters.sensor_based.odometry import ODOMETRY_RATE_BIAS_SIGMA_RAD_S
 from filters.sensor_based.state import FilterState
 
@@ -86,7 +87,30 @@ def vehicle_prior(
 
 def earth_tracker(config: SensorBasedConfig, sequence: Sequence) -> EarthFrameTracker | None:
     """The Earth-frame tracker at the dataset's initial pose (the identity without one) and
-    its covariance; None with ``earth_frame=false``."""
+    its covariance; None with ``earth_frame=false`` or the frame in the filter's state."""
+    if not config.earth_frame or config.earth_frame_source != "map_alignment":
+        return None
+    start_rotation, start_position, start_covariance = start_pose(config, sequence)
+    return EarthFrameTracker(
+        sequence.dimension, start_rotation, start_position, covariance=start_covariance
+    )
+
+
+def add_earth_frame(config: SensorBasedConfig, sequence: Sequence, state: FilterState) -> bool:
+    """With ``earth_frame_source=filter_state``, the Earth frame's features at the dataset's
+    initial pose join ``state`` (``earth_state``); returns whether they did."""
+    if not config.earth_frame or config.earth_frame_source != "filter_state":
+        return False
+    values, covariance = frame_from_pose(*start_pose(config, sequence))
+    state.add_earth_frame(values, covariance)
+    return True
+
+
+def start_pose(
+    config: SensorBasedConfig, sequence: Sequence
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The dataset's initial pose (the identity without one): rotation (d, d) body to Earth,
+    position (d,) [m], and its covariance (world coordinates ``[dp, dphi]``; None: zero)."""
     d = sequence.dimension
     r = rate_dimension(d)
     start = sequence.initial_state
@@ -100,8 +124,4 @@ def earth_tracker(config: SensorBasedConfig, sequence: Sequence) -> EarthFrameTr
         position_sigma = config.initial_position_sigma_m or start.position_sigma_m
         rotation_sigma = config.initial_rotation_sigma_rad or start.rotation_sigma_rad
         start_covariance = np.diag([position_sigma**2] * d + [rotation_sigma**2] * r)
-    return (
-        EarthFrameTracker(d, start_rotation, start_position, covariance=start_covariance)
-        if config.earth_frame
-        else None
-    )
+    return start_rotation, start_position, start_covariance

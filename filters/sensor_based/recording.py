@@ -24,6 +24,7 @@ from filters.ekf_slam.boundary import pose_covariance_to_interface
 from filters.sensor_based.dynamics import ProcessNoise
 from filters.sensor_based.earth_frame import EarthFrameTracker
 from filters.sensor_based.earth_motion import MotionSinceScan
+from filters.sensor_based.earth_state import pose_covariance, pose_from_frame
 from filters.sensor_based.state import FilterState
 
 
@@ -95,6 +96,22 @@ def record_earth_pose(
     )
 
 
+def record_frame_pose(recorder: EstimateRecorder, state: FilterState, t: float) -> None:
+    """The Earth-frame pose read from the state's Earth-frame features (``earth_state``)
+    with its first-order covariance, in the interface's right perturbation."""
+    features = state.earth_frame_features()
+    frame = state.features[features]
+    indices = state.state_indices(features)
+    rotation, position = pose_from_frame(frame)
+    covariance = pose_covariance(frame, state.covariance[np.ix_(indices, indices)])
+    recorder.pose(
+        t,
+        position,
+        _attitude(rotation, state.dimension),
+        pose_covariance_to_interface(rotation, covariance),
+    )
+
+
 def record_carried_pose(
     recorder: EstimateRecorder,
     earth: EarthFrameTracker,
@@ -145,11 +162,27 @@ def earth_frame_map(earth: EarthFrameTracker, current: LandmarkMap) -> LandmarkM
     )
 
 
+def frame_earth_map(state: FilterState, current: LandmarkMap) -> LandmarkMap:
+    """The ``current`` body-frame map in the Earth frame through the state's Earth-frame
+    features: ``R (l - o)`` (covariances rotated, the frame's uncertainty ignored)."""
+    frame = state.features[state.earth_frame_features()]
+    rotation, _ = pose_from_frame(frame)
+    covs = None if current.covariances is None else rotation @ current.covariances @ rotation.T
+    return LandmarkMap(
+        ids=current.ids,
+        positions=(current.positions - frame[0]) @ rotation.T,
+        covariances=covs,
+        frame=Frame.WORLD,
+        t=None,
+    )
+
+
 def estimate_notes(
     earth: EarthFrameTracker | None,
     deleted: dict[str, int],
     use_odometry: bool,
     skipped: dict[str, int],
+    frame_in_state: bool = False,
 ) -> tuple[str, ...]:
     """The notes of the ``Estimate``: frames, how the pose was derived, deletions, inputs."""
     pose_note = (
@@ -164,6 +197,11 @@ def estimate_notes(
         if earth is not None
         else "robocentric only: no world pose"
     )
+    if frame_in_state:
+        pose_note = (
+            "pose: Earth frame estimated as non-visible origin and axis features of the filter "
+            "(earth_frame_source=filter_state); first-order covariance"
+        )
     notes = [
         "velocity and landmarks are body-frame (robocentric filter state)",
         pose_note,

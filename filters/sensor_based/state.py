@@ -15,6 +15,7 @@ import numpy as np
 from filters import kalman
 from filters.landmark_predictor import LandmarkMeasurement, LandmarkPredictor
 from filters.sensor_based.dynamics import rate_dimension
+from filters.sensor_based.earth_state import EARTH_AXIS, EARTH_FRAME_OWNER, EARTH_ORIGIN
 from filters.state_registry import StateRegistry
 
 POSITION = "position"
@@ -65,6 +66,36 @@ class FilterState:
     @property
     def is_position(self) -> np.ndarray:
         return self.registry.block_names == POSITION
+
+    @property
+    def translates(self) -> np.ndarray:
+        """(F,) bool: features that move with the vehicle's translation (the ``-v`` of eq. (1)):
+        landmark positions and the Earth origin."""
+        names = self.registry.block_names
+        return (names == POSITION) | (names == EARTH_ORIGIN)
+
+    @property
+    def undisturbed(self) -> np.ndarray:
+        """(F,) bool: the Earth frame's features, exactly static in the Earth frame, which take
+        no disturbance (``earth_state``)."""
+        return self.registry.block_owners == EARTH_FRAME_OWNER
+
+    def earth_frame_features(self) -> np.ndarray:
+        """Feature indices of the Earth frame ``[origin, axes...]`` (empty when not in the state)."""
+        return np.flatnonzero(self.registry.block_owners == EARTH_FRAME_OWNER)
+
+    def add_earth_frame(self, values: np.ndarray, covariance: np.ndarray) -> None:
+        """Append the Earth frame's features (``earth_state.frame_from_pose``): values
+        (1 + axes, d), covariance (k d, k d), uncorrelated with the state so far."""
+        d = self.dimension
+        values = np.asarray(values, dtype=float)
+        blocks = [(EARTH_ORIGIN, d)] + [(EARTH_AXIS, d)] * (len(values) - 1)
+        uncorrelated = kalman.SparseJacobian(np.zeros(0, dtype=int), np.zeros((values.size, 0)))
+        self.covariance = kalman.augment(self.covariance, uncorrelated, np.asarray(covariance))
+        self.registry.augment(EARTH_FRAME_OWNER, blocks)
+        self.x = np.concatenate([self.x, values.ravel()])
+        self.measured = np.vstack([self.measured, values])
+        self.visible = np.concatenate([self.visible, np.zeros(len(values), dtype=bool)])
 
     @property
     def feature_count(self) -> int:
