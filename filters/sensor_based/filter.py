@@ -36,11 +36,12 @@ rad/s bias, 4.3 m against 0.04 m (``tests/test_sensor_based_filter.py``). On UTI
 0.082 / 0.201 / 0.108, 0.130 / 0.112 / 0.080 / 0.166 / 0.106, 0.129 / 0.112 / 0.080 /
 0.168 / 0.106 m; Victoria Park (RMS from the batch smoother) 3.79 / 3.93 m; CARMEN Intel
 13.84 / 12.86 m, Freiburg 079 and MIT CSAIL unchanged (docs/estimators/sensor-based.md).
-Long steps are split into sub-steps of at most ``max_step_s``. The rate over a gyro interval is, by default, the mean of the
-two samples that bracket it (``interval_rate="average"``): a sampled gyro reads the
-instantaneous rate, and holding the earlier sample (the literal forward Euler of eq. (10))
-mis-integrates the heading by ``0.5 omega_dot Ts^2`` per step, which at the 10 Hz of the
-paper and a corner's ``omega_dot ~ 0.1 rad/s^2`` is a bias-sized error of 5e-3 rad/s.
+Long steps are split into sub-steps of at most ``max_step_s``. The rate over a gyro
+interval is, by default, the mean of the two samples that bracket it
+(``interval_rate="average"``): a sampled gyro reads the instantaneous rate, and holding
+the earlier sample (the literal forward Euler of eq. (10)) mis-integrates the heading by
+``0.5 omega_dot Ts^2`` per step, which at the 10 Hz of the paper and a corner's
+``omega_dot ~ 0.1 rad/s^2`` is a bias-sized error of 5e-3 rad/s.
 ``"hold"`` gives the literal scheme. A scan between gyro samples is reached with the held
 rate; the rest of that interval uses the average once the next sample arrives.
 
@@ -50,8 +51,9 @@ every scan, ``landmarks`` snapshots (body frame, the filter's own map ids) every
 trajectory *derived* from consecutive body-frame maps, planar with the first-order covariance
 of ``earth_pose_covariance`` (our extension), 3-D without one (``earth_frame=false`` turns
 it off), or, with ``earth_frame_source=filter_state``, read from the Earth frame's
-non-visible features in the state with their first-order covariance (``earth_state``); extras ``vehicle_t``/``vehicle_state``/``vehicle_covariance`` carry the joint
-[v, b] block for the vehicle NEES. NIS: the stacked innovation of every scan, and one
+non-visible features in the state with their first-order covariance (``earth_state``);
+extras ``vehicle_t``/``vehicle_state``/``vehicle_covariance`` carry the joint [v, b] block
+for the vehicle NEES. NIS: the stacked innovation of every scan, and one
 value per associated landmark (eq. (11)), dof = its block size.
 
 Measurement noise: the filter uses each scan's stated covariances (``tuning=paper``: the
