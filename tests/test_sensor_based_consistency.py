@@ -135,3 +135,28 @@ def test_earth_frame_in_the_state_gives_a_consistent_pose() -> None:
     average = averaged_nees(np.stack(runs), dof=3)
     assert average.inside_fraction >= 0.8, average.inside_fraction
     assert average.lower <= np.mean(average.mean) <= average.upper
+
+
+def test_earth_frame_in_the_state_gives_a_consistent_3d_pose() -> None:
+    """The same in 3-D (``sim:aghili-rover``, 10 seeds x 10 s, the scenario's stated
+    noise): the derived alignment exports no 3-D covariance (``earth_pose_covariance`` says
+    why); the frame's features carry one, and the averaged pose NEES (6 dof) is inside the
+    95 % band on most scans (measured: 0.95 per dof, inside on every scan)."""
+    from workbench.metrics.consistency import nees, pose_errors
+
+    runs = []
+    for seed in range(10):
+        sequence = load_scenario("aghili-rover", seed, {"duration_s": "10"})
+        estimator = SensorBasedSlam(SensorBasedConfig(earth_frame_source="filter_state"), sequence)
+        for measurement in sequence.measurements():
+            estimator.process(measurement)
+        pose, truth = estimator.estimate().causal.pose, sequence.ground_truth.pose
+        index = np.clip(np.searchsorted(truth.t, pose.t - 1e-9), 0, len(truth.t) - 1)
+        kept = np.flatnonzero(np.isclose(truth.t[index], pose.t))[1:]  # the exact start out
+        runs.append(
+            nees(pose_errors(pose.select(kept), truth.select(index[kept])), pose.covariances[kept])
+        )
+    shortest = min(len(run) for run in runs)
+    average = averaged_nees(np.stack([run[:shortest] for run in runs]), dof=6)
+    assert average.inside_fraction >= 0.8, average.inside_fraction
+    assert average.lower <= np.mean(average.mean) <= average.upper
