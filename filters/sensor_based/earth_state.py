@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets.rotations import PLANAR_GENERATOR
+from datasets.rotations import PLANAR_GENERATOR, rot2, skew
 
 EARTH_ORIGIN = "earth_origin"
 EARTH_AXIS = "earth_axis"
@@ -41,11 +41,6 @@ def axis_count(dimension: int) -> int:
     """Axes the frame carries: one in 2-D (the heading), two in 3-D (the third is their cross
     product)."""
     return 1 if dimension == 2 else 2
-
-
-def _skew(vector: np.ndarray) -> np.ndarray:
-    x, y, z = vector
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def frame_from_pose(
@@ -72,9 +67,9 @@ def frame_from_pose(
     else:
         jacobian = np.zeros((k * d, 6))
         jacobian[:3, :3] = -rotation.T
-        jacobian[:3, 3:] = -rotation.T @ _skew(position)
-        jacobian[3:6, 3:] = rotation.T @ _skew(np.array([1.0, 0.0, 0.0]))
-        jacobian[6:9, 3:] = rotation.T @ _skew(np.array([0.0, 1.0, 0.0]))
+        jacobian[:3, 3:] = -rotation.T @ skew(position)
+        jacobian[3:6, 3:] = rotation.T @ skew(np.array([1.0, 0.0, 0.0]))
+        jacobian[6:9, 3:] = rotation.T @ skew(np.array([0.0, 1.0, 0.0]))
     frame_covariance = jacobian @ np.asarray(covariance, dtype=float) @ jacobian.T
     return values, 0.5 * (frame_covariance + frame_covariance.T)
 
@@ -89,9 +84,7 @@ def pose_from_frame(features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     origin = features[0]
     if features.shape[1] == 2:
         axis = features[1]
-        heading = np.arctan2(-axis[1], axis[0])
-        c, s = np.cos(heading), np.sin(heading)
-        rotation = np.array([[c, -s], [s, c]])
+        rotation = rot2(float(np.arctan2(-axis[1], axis[0])))
     else:
         a_x, a_y = features[1], features[2]
         transposed = np.column_stack([a_x, a_y, np.cross(a_x, a_y)])  # R^T
@@ -135,7 +128,7 @@ def pose_jacobian(features: np.ndarray) -> np.ndarray:
     jacobian = np.zeros((6, 9))
     jacobian[3:, 3:] = rotation_rows
     jacobian[:3, :3] = -rotation
-    jacobian[:3, 3:] = _skew(rotation @ origin) @ rotation_rows
+    jacobian[:3, 3:] = skew(rotation @ origin) @ rotation_rows
     return jacobian
 
 

@@ -151,26 +151,24 @@ def body_map(state: FilterState, t: float) -> LandmarkMap:
 def earth_frame_map(earth: EarthFrameTracker, current: LandmarkMap) -> LandmarkMap:
     """The ``current`` body-frame map in the Earth frame (derived; covariances rotated, pose
     uncertainty ignored)."""
-    rotation = earth.rotation
-    covs = None if current.covariances is None else rotation @ current.covariances @ rotation.T
-    return LandmarkMap(
-        ids=current.ids,
-        positions=earth.to_earth(current.positions),
-        covariances=covs,
-        frame=Frame.WORLD,
-        t=None,
-    )
+    return _map_in_earth(current, earth.rotation, earth.position)
 
 
 def frame_earth_map(state: FilterState, current: LandmarkMap) -> LandmarkMap:
     """The ``current`` body-frame map in the Earth frame through the state's Earth-frame
-    features: ``R (l - o)`` (covariances rotated, the frame's uncertainty ignored)."""
-    frame = state.features[state.earth_frame_features()]
-    rotation, _ = pose_from_frame(frame)
+    features (``R l + p``, which is ``R (l - o)``; covariances rotated, the frame's
+    uncertainty ignored)."""
+    rotation, position = pose_from_frame(state.features[state.earth_frame_features()])
+    return _map_in_earth(current, rotation, position)
+
+
+def _map_in_earth(current: LandmarkMap, rotation: np.ndarray, position: np.ndarray) -> LandmarkMap:
+    """Body-frame map through the pose ``(R, p)``: positions ``R l + p``, covariances
+    ``R C R^T``."""
     covs = None if current.covariances is None else rotation @ current.covariances @ rotation.T
     return LandmarkMap(
         ids=current.ids,
-        positions=(current.positions - frame[0]) @ rotation.T,
+        positions=current.positions @ rotation.T + position,
         covariances=covs,
         frame=Frame.WORLD,
         t=None,

@@ -90,12 +90,25 @@ class FilterState:
         d = self.dimension
         values = np.asarray(values, dtype=float)
         blocks = [(EARTH_ORIGIN, d)] + [(EARTH_AXIS, d)] * (len(values) - 1)
+        self._append(EARTH_FRAME_OWNER, blocks, values, np.asarray(covariance), visible=False)
+
+    def _append(
+        self,
+        owner: int,
+        blocks: list[tuple[str, int]],
+        values: np.ndarray,
+        covariance: np.ndarray,
+        visible: bool,
+    ) -> None:
+        """Append features (F, d) of one owner with their covariance (F d, F d), uncorrelated
+        with the state so far (robocentric: a measurement *is* the landmark; the Earth frame
+        starts from the stated start pose)."""
         uncorrelated = kalman.SparseJacobian(np.zeros(0, dtype=int), np.zeros((values.size, 0)))
-        self.covariance = kalman.augment(self.covariance, uncorrelated, np.asarray(covariance))
-        self.registry.augment(EARTH_FRAME_OWNER, blocks)
+        self.covariance = kalman.augment(self.covariance, uncorrelated, covariance)
+        self.registry.augment(owner, blocks)
         self.x = np.concatenate([self.x, values.ravel()])
         self.measured = np.vstack([self.measured, values])
-        self.visible = np.concatenate([self.visible, np.zeros(len(values), dtype=bool)])
+        self.visible = np.concatenate([self.visible, np.full(len(values), visible)])
 
     @property
     def feature_count(self) -> int:
@@ -176,14 +189,13 @@ class FilterState:
         landmark_id = self._next_id
         self._next_id += 1
         # robocentric: the measurement *is* the landmark, uncorrelated with the state
-        uncorrelated = kalman.SparseJacobian(np.zeros(0, dtype=int), np.zeros((d * len(values), 0)))
-        self.covariance = kalman.augment(
-            self.covariance, uncorrelated, kalman.block_diagonal(np.stack(covs))
+        self._append(
+            landmark_id,
+            blocks,
+            np.stack(values),
+            kalman.block_diagonal(np.stack(covs)),
+            visible=True,
         )
-        self.registry.augment(landmark_id, blocks)
-        self.x = np.concatenate([self.x, *values])
-        self.measured = np.vstack([self.measured, np.stack(values)])
-        self.visible = np.concatenate([self.visible, np.ones(len(values), dtype=bool)])
         return landmark_id
 
     def remove_landmarks(self, landmark_ids: list[int] | np.ndarray) -> None:
