@@ -204,6 +204,12 @@ class SensorBasedConfig(
         "turns the bias term into a drift across gaps; 1 s is longer than the scan period of "
         "every shared recording, so only gaps are affected)",
     )
+    rigid_correction: Literal["exact", "linear"] = Field(
+        "exact",
+        description="'exact': the rigid part of a scan's correction (the map turning and "
+        "shifting about the vehicle) applied as an exact rotation (rigid_correction); 'linear': "
+        "the Kalman correction as it is, a rotation to first order only (section IV-B)",
+    )
     earth_frame: bool = Field(
         True,
         description="export the Earth-frame trajectory (earth_frame_source) as the pose",

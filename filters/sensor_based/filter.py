@@ -24,6 +24,14 @@ dilates the landmarks during turns, which the filter mistakes for speed (measure
 -3 mm/s forward-velocity error after each corridor corner of ``sim:guerreiro-loop``, four
 times the true scatter). ``discretization="euler"`` gives the literal eq. (10).
 
+Update: the section IV-B correction corrects the map's common rigid motion (the vehicle's
+heading and position against the world, which every feature shares) to first order only,
+``f + dp + M(f) dphi``, which dilates the map by ``r dphi^2 / 2`` at range ``r``. Its rigid
+part is applied as an exact rotation by default (``rigid_correction``; ``"linear"``: the
+Kalman correction as it is). On UTIAS dataset 1 with ids (SE(2) ATE, robots 1-5) linear /
+exact: 0.130 / 0.112 / 0.080 / 0.166 / 0.106, 0.094 / 0.082 / 0.080 / 0.099 / 0.121 m;
+after robot 2's 34 s without sightings one correction turned the map by 0.26 rad.
+
 Multirate: the paper assumes synchronised gyro and laser; here ``A(t, y)`` holds each
 visible feature's last measured value between scans (it enters only through the ``M(y) b``
 bias term), for at most ``measured_hold_s`` (1 s): after that the feature is non-visible
@@ -394,7 +402,15 @@ class SensorBasedSlam:
         self._last_scan_t = t
         sigma = self.config.direction_sigma_rad
         assignment = update_matched(
-            self.state, self.recorder, sigma, t, points, covs, directions, association
+            self.state,
+            self.recorder,
+            sigma,
+            t,
+            points,
+            covs,
+            directions,
+            association,
+            self.config.rigid_correction,
         )
         for j in association.rows(Decision.NEW):
             landmark_id = create_landmark(

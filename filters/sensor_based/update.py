@@ -15,6 +15,7 @@ from datasets.estimate import EstimateRecorder
 from filters import kalman
 from filters.association import Decision, ScanAssociation
 from filters.sensor_based.directions import direction_covariance, match_direction
+from filters.sensor_based.rigid_correction import apply_rigid_correction
 from filters.sensor_based.state import FilterState
 
 
@@ -67,9 +68,12 @@ def update_matched(
     covs: np.ndarray,
     directions: np.ndarray | None,
     association: ScanAssociation,
+    rigid_correction: str = "exact",
 ) -> np.ndarray:
     """Section IV-B update of every matched landmark (with its direction features);
-    returns the map id per sighting (-1 unless matched)."""
+    returns the map id per sighting (-1 unless matched). ``rigid_correction``: "exact"
+    applies the correction's rigid part as an exact rotation (``rigid_correction``), "linear"
+    leaves the Kalman correction as it is."""
     d = state.dimension
     assignment = np.where(
         np.array([decision == Decision.MATCHED for decision in association.decisions]),
@@ -105,6 +109,7 @@ def update_matched(
         return assignment
     features = np.array(measured_features)
     indices = state.state_indices(features)
+    prior_x = state.x.copy()
     state.x, outcome = selection_update(
         state.x,
         state.covariance,
@@ -120,6 +125,8 @@ def update_matched(
     if outcome.correction is None:
         recorder.event(t, "update_refused", reason=outcome.refused)
         return assignment
+    if rigid_correction == "exact":
+        apply_rigid_correction(state, prior_x)
     state.measured[features] = np.stack(values)
     state.visible[features] = True
     return assignment
