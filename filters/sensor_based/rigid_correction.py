@@ -15,7 +15,11 @@ squares over the landmark positions (the rotation about the vehicle, where the b
 uncertainty is), applies it exactly (``R(dphi) f + dp``, directions ``R(dphi) d``) and adds the
 remainder linearly; the features' covariance is carried into the rotated frame
 (``P <- T P T^T``, ``T = diag(I, R, ..., R)``). To first order it is the Kalman correction
-itself.
+itself. The landmarks measured in the same scan are turned with the rest, so that the map
+stays rigid: they take the second-order term too, which their next sighting removes
+(noise-free test, 0.3 rad: 0.13-0.16 m at the first scan, 0.01-0.02 m one second later;
+turning only the landmarks not measured broke the map's shape and read 0.07-0.16 m after
+5 s, against 0.01-0.02 m).
 """
 
 from __future__ import annotations
@@ -65,8 +69,9 @@ def apply_rigid_correction(
     state.x[nv:] = (before @ rotation.T + translation + remainder).ravel()
     # the features' errors are carried into the rotated frame with them: P <- T P T^T
     covariance = state.covariance
+    size = count * d
     rows = covariance[nv:, :].reshape(count, d, -1)
-    covariance[nv:, :] = np.einsum("ij,fjn->fin", rotation, rows).reshape(count * d, -1)
+    covariance[nv:, :] = np.matmul(rotation, rows).reshape(size, -1)
     columns = covariance[:, nv:].reshape(-1, count, d)
-    covariance[:, nv:] = np.einsum("nfj,ij->nfi", columns, rotation).reshape(-1, count * d)
+    covariance[:, nv:] = np.matmul(columns, rotation.T).reshape(-1, size)
     return float(np.linalg.norm(dphi))
