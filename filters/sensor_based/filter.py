@@ -42,8 +42,9 @@ turns the bias term into a drift of the map: noise-free, 20 s at 0.3 rad/s with 
 rad/s bias, 4.3 m against 0.04 m (``tests/test_sensor_based_filter.py``). On UTIAS
 dataset 1 with ids (SE(2) ATE, robots 1-5; the linear update) held to the next scan / 1 s /
 0.3 s: 0.124 / 0.119 / 0.082 / 0.201 / 0.108, 0.130 / 0.112 / 0.080 / 0.166 / 0.106, 0.129 /
-0.112 / 0.080 / 0.168 / 0.106 m; Victoria Park (RMS from the batch smoother) 3.79 / 3.93 m; CARMEN Intel
-13.84 / 12.86 m, Freiburg 079 and MIT CSAIL unchanged (docs/estimators/sensor-based.md).
+0.112 / 0.080 / 0.168 / 0.106 m; Victoria Park (RMS from the batch smoother) 3.79 / 3.93 m;
+CARMEN Intel 13.84 / 12.86 m, Freiburg 079 and MIT CSAIL unchanged
+(docs/estimators/sensor-based.md).
 Long steps are split into sub-steps of at most ``max_step_s``. The rate over a gyro
 interval is, by default, the mean of the two samples that bracket it
 (``interval_rate="average"``): a sampled gyro reads the instantaneous rate, and holding
