@@ -174,7 +174,7 @@ def _out_of_view_errors(rigid_correction: str) -> np.ndarray:
 def test_after_a_heading_correction_the_landmarks_out_of_view_keep_their_place() -> None:
     """The filter corrects the 0.3 rad of heading from three landmarks; the four out of view
     follow through the correlations. Linearly they keep the dilation (measured 0.10-0.19 m at
-    3.2-5.1 m); turned exactly they are within 0.03 m."""
+    1.7-7.1 m); turned exactly they are within 0.03 m."""
     exact = _out_of_view_errors("exact")
     linear = _out_of_view_errors("linear")
     assert exact.size == linear.size == 4
