@@ -21,6 +21,15 @@ def integrated_rotation(yaw_rate: float, t: np.ndarray) -> np.ndarray:
     )
 
 
+def body_frame_landmarks(
+    landmarks: np.ndarray, body_velocity: tuple[float, float], yaw_rate: float, t: float
+) -> np.ndarray:
+    """The world ``landmarks`` (L, 2) in the body frame at ``t`` of ``planar_sequence``'s
+    vehicle (constant body velocity and yaw rate from the origin), (L, 2)."""
+    position = integrated_rotation(yaw_rate, np.array([t]))[0] @ np.asarray(body_velocity)
+    return (landmarks - position) @ rot2(yaw_rate * t)
+
+
 def planar_sequence(
     duration_s: float,
     body_velocity: tuple[float, float],

@@ -13,7 +13,7 @@ from datasets.simulation.scenarios import load_scenario
 from datasets.state import Frame
 from filters.sensor_based.config import SensorBasedConfig
 from filters.sensor_based.filter import SensorBasedSlam
-from tests.sensor_based_support import integrated_rotation, planar_sequence, run
+from tests.sensor_based_support import body_frame_landmarks, planar_sequence, run
 from workbench.metrics.data_association import score_associations
 
 LANDMARKS = np.array([[3.0, 1.0], [2.0, -2.0], [5.0, 0.5], [4.0, 3.0]])
@@ -328,10 +328,7 @@ def test_a_scan_s_measured_values_expire_across_a_gap_without_scans(hold_s, exac
     )
     estimator, _ = run(SensorBasedSlam, config, sequence, kept)
     ids, positions = estimator.state.landmark_positions()
-    t = estimator.t
-    heading = 0.3 * t
-    world = integrated_rotation(0.3, np.array([t]))[0] @ np.array([0.4, 0.0])
-    truth = (LANDMARKS - world) @ rot2(heading)
+    truth = body_frame_landmarks(LANDMARKS, (0.4, 0.0), 0.3, estimator.t)
     error = np.abs(positions - truth[ids]).max()
     if exact:
         assert error < 0.05

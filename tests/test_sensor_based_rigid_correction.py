@@ -13,7 +13,7 @@ from filters.sensor_based.dynamics import bias_coupling
 from filters.sensor_based.filter import SensorBasedSlam
 from filters.sensor_based.rigid_correction import apply_rigid_correction, rigid_part
 from filters.sensor_based.state import FilterState
-from tests.sensor_based_support import integrated_rotation, planar_sequence, run
+from tests.sensor_based_support import body_frame_landmarks, planar_sequence, run
 
 
 def _state(dimension: int, count: int, seed: int) -> FilterState:
@@ -164,9 +164,7 @@ def _out_of_view_errors(rigid_correction: str) -> np.ndarray:
     )
     estimator, _ = run(SensorBasedSlam, config, sequence, kept)
     ids, positions = estimator.state.landmark_positions()
-    t = estimator.t
-    world = integrated_rotation(0.2, np.array([t]))[0] @ np.array([0.3, 0.0])
-    truth = (LANDMARKS - world) @ rot2(0.2 * t)
+    truth = body_frame_landmarks(LANDMARKS, (0.3, 0.0), 0.2, estimator.t)
     errors = np.linalg.norm(positions - truth[ids], axis=1)
     return errors[~np.isin(ids, IN_VIEW)]
 

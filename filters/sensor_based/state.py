@@ -82,7 +82,7 @@ class FilterState:
 
     def earth_frame_features(self) -> np.ndarray:
         """Feature indices of the Earth frame ``[origin, axes...]`` (empty when not in the state)."""
-        return np.flatnonzero(self.registry.block_owners == EARTH_FRAME_OWNER)
+        return np.flatnonzero(self.undisturbed)
 
     def add_earth_frame(self, values: np.ndarray, covariance: np.ndarray) -> None:
         """Append the Earth frame's features (``earth_state.frame_from_pose``): values
